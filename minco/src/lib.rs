@@ -1,0 +1,47 @@
+//! MINCO: minimum-control-effort piecewise-polynomial trajectories with O(M) gradients.
+//!
+//! A trajectory of M polynomial pieces of degree 2S − 1 (S = 2, 3, 4: minimum acceleration,
+//! jerk, snap) through inner waypoints q_1..q_{M−1} with durations T_1..T_M minimises the
+//! control effort
+//!
+//! J = Σ_i ∫₀^{T_i} ‖p_i^(S)(t)‖² dt
+//!
+//! for fixed head and tail states. Its coefficients solve a banded linear system
+//! A(T) c = b(q, head, tail) (Wang et al., "Geometrically constrained trajectory
+//! optimization for multicopters", T-RO 2022), so any cost K(c, T) can be differentiated
+//! with respect to q and T in O(M) by one adjoint solve. That is what makes MINCO
+//! trajectories cheap to optimise; the FU-MPC system uses them for its local references.
+//!
+//! - [`Minco`] (with [`MinimumAcceleration`], [`MinimumJerk`], [`MinimumSnap`]): set up once,
+//!   solve for new (q, T) without allocating, energy and gradients;
+//! - [`Trajectory`]: evaluation, sampling and speed/acceleration bounds.
+//!
+//! # Example
+//! ```
+//! use minco::MinimumSnap;
+//!
+//! # fn main() -> Result<(), minco::MincoError> {
+//! // Three pieces through two waypoints, at rest at both ends.
+//! let mut m = MinimumSnap::<3>::new(3)?;
+//! let rest = |p: [f64; 3]| [p, [0.0; 3], [0.0; 3], [0.0; 3]];
+//! m.solve(&rest([0.0; 3]), &rest([3.0, 0.0, 1.0]), &[[1.0, 1.0, 0.5], [2.0, 1.0, 1.0]], &[1.0; 3])?;
+//! let (energy, grad_q, grad_t) = m.energy_gradient()?;
+//! assert!(energy > 0.0);
+//! // Stretching time lowers the effort.
+//! assert!(grad_t.iter().all(|g| *g < 0.0));
+//! assert_eq!(grad_q.len(), 2);
+//! # Ok(()) }
+//! ```
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![warn(rustdoc::broken_intra_doc_links)]
+
+mod band;
+mod error;
+mod minco;
+mod poly;
+mod trajectory;
+
+pub use error::{MincoError, Result};
+pub use minco::{Minco, MinimumAcceleration, MinimumJerk, MinimumSnap};
+pub use trajectory::Trajectory;
