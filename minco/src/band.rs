@@ -91,7 +91,10 @@ impl BandMatrix {
     /// Solves Aᵀ x = b in place; `rhs` as for [`BandMatrix::solve`].
     pub(crate) fn solve_transposed<const D: usize>(&self, rhs: &mut [[f64; D]]) {
         let b = self.b;
-        with_bandwidth!(b, solve_transposed::<_, D>(&self.data, &self.inv_diag, rhs, b));
+        with_bandwidth!(
+            b,
+            solve_transposed::<_, D>(&self.data, &self.inv_diag, rhs, b)
+        );
     }
 }
 
@@ -101,7 +104,12 @@ fn bw<const B: usize>(b: usize) -> usize {
     if B == 0 { b } else { B }
 }
 
-fn factorize<const B: usize>(data: &mut [f64], inv_diag: &mut [f64], n: usize, b: usize) -> Result<(), usize> {
+fn factorize<const B: usize>(
+    data: &mut [f64],
+    inv_diag: &mut [f64],
+    n: usize,
+    b: usize,
+) -> Result<(), usize> {
     let b = bw::<B>(b);
     let w = 2 * b + 1;
     for k in 0..n {
@@ -111,17 +119,22 @@ fn factorize<const B: usize>(data: &mut [f64], inv_diag: &mut [f64], n: usize, b
         }
         let inv = 1.0 / piv;
         inv_diag[k] = inv;
-        // Pivot row k, columns k+1..=k+b; rows k+1..=k+b below it (padding included).
+        // Pivot row k, columns k+1..=k+b, stored divided by the pivot (U = D U' with U'
+        // unit upper): the solves then keep the division off their dependency chains.
         let (head, tail) = data.split_at_mut((k + 1) * w);
-        let row_k = &head[k * w + b + 1..k * w + 2 * b + 1];
+        let row_k = &mut head[k * w + b + 1..k * w + 2 * b + 1];
+        for u in row_k.iter_mut() {
+            *u *= inv;
+        }
+        let row_k = &*row_k;
         for r in 1..=b {
             // Row k + r: column k sits at offset b − r, columns k+1..=k+b follow.
             let base = (r - 1) * w + b - r;
-            let l = tail[base] * inv;
-            tail[base] = l;
+            let a_ik = tail[base];
+            tail[base] = a_ik * inv;
             let row_i = &mut tail[base + 1..base + 1 + b];
             for (a, u) in row_i.iter_mut().zip(row_k) {
-                *a -= l * u;
+                *a -= a_ik * u;
             }
         }
     }
@@ -132,7 +145,12 @@ fn factorize<const B: usize>(data: &mut [f64], inv_diag: &mut [f64], n: usize, b
     Ok(())
 }
 
-fn solve<const B: usize, const D: usize>(data: &[f64], inv_diag: &[f64], x: &mut [[f64; D]], b: usize) {
+fn solve<const B: usize, const D: usize>(
+    data: &[f64],
+    inv_diag: &[f64],
+    x: &mut [[f64; D]],
+    b: usize,
+) {
     let b = bw::<B>(b);
     let w = 2 * b + 1;
     let rows = x.len();
@@ -158,39 +176,47 @@ fn solve<const B: usize, const D: usize>(data: &[f64], inv_diag: &[f64], x: &mut
         }
         x[i] = acc;
     }
-    // U x = y; the padding rows are the identity, so start the fixed-length loop below them.
+    // U x = y with U = D U': x_i = y_i / u_ii − Σ_j u'_ij x_j. The padding rows are the
+    // identity, so the fixed-length loop starts below them.
     for i in (0..rows - b).rev() {
         let row = &data[i * w + b + 1..i * w + 2 * b + 1];
         let mut acc = x[i];
+        for a in &mut acc {
+            *a *= inv_diag[i];
+        }
         for (u, xj) in row.iter().zip(&x[i + 1..=i + b]) {
             for d in 0..D {
                 acc[d] -= u * xj[d];
             }
         }
-        for a in &mut acc {
-            *a *= inv_diag[i];
-        }
         x[i] = acc;
     }
 }
 
-fn solve_transposed<const B: usize, const D: usize>(data: &[f64], inv_diag: &[f64], x: &mut [[f64; D]], b: usize) {
+fn solve_transposed<const B: usize, const D: usize>(
+    data: &[f64],
+    inv_diag: &[f64],
+    x: &mut [[f64; D]],
+    b: usize,
+) {
     let b = bw::<B>(b);
     let w = 2 * b + 1;
     let rows = x.len();
-    // Uᵀ y = rhs, by rows of U.
+    // Uᵀ y = rhs with Uᵀ = U'ᵀ D: solve the unit lower U'ᵀ z = rhs by rows of U', then
+    // y = D⁻¹ z, which stays off the dependency chain.
     for i in 0..rows - b {
-        let mut yi = x[i];
+        let zi = x[i];
+        let row = &data[i * w + b + 1..i * w + 2 * b + 1];
+        for (u, xj) in row.iter().zip(&mut x[i + 1..=i + b]) {
+            for d in 0..D {
+                xj[d] -= u * zi[d];
+            }
+        }
+        let mut yi = zi;
         for v in &mut yi {
             *v *= inv_diag[i];
         }
         x[i] = yi;
-        let row = &data[i * w + b + 1..i * w + 2 * b + 1];
-        for (u, xj) in row.iter().zip(&mut x[i + 1..=i + b]) {
-            for d in 0..D {
-                xj[d] -= u * yi[d];
-            }
-        }
     }
     // Lᵀ x = y, by rows of L (the padding rows of L are zero).
     for i in (b..rows - b).rev() {

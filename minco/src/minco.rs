@@ -243,13 +243,16 @@ impl<const S: usize, const D: usize> Minco<S, D> {
     }
 
     /// Adds the partial derivatives of J to `grad_c` (∂J/∂c, one row per coefficient row) and
-    /// `grad_t` (the explicit ∂J/∂T_i = ‖p_i^(S)(T_i)‖²).
+    /// `grad_t` (the explicit ∂J/∂T_i = ‖p_i^(S)(T_i)‖²), and returns J.
+    ///
+    /// J is quadratic in c, J = ½ ⟨c, ∂J/∂c⟩, so it comes for free with the partials.
     ///
     /// # Errors
     /// [`MincoError::NotSolved`] before a solve, [`MincoError::LengthMismatch`] for wrong lengths.
-    pub fn add_energy_partials(&self, grad_c: &mut [[f64; D]], grad_t: &mut [f64]) -> Result<()> {
+    pub fn add_energy_partials(&self, grad_c: &mut [[f64; D]], grad_t: &mut [f64]) -> Result<f64> {
         self.check_gradient_buffers(grad_c.len(), grad_t.len())?;
         let n = Self::N;
+        let mut energy = 0.0;
         for i in 0..self.pieces {
             let c = self.piece(i);
             let tp = powers(self.durations[i]);
@@ -265,12 +268,13 @@ impl<const S: usize, const D: usize> Minco<S, D> {
                 let row = &mut grad_c[n * i + k];
                 for d in 0..D {
                     row[d] += g[d];
+                    energy += 0.5 * c[k][d] * g[d];
                 }
             }
             let js = eval(c, S, self.durations[i]);
             grad_t[i] += js.iter().map(|v| v * v).sum::<f64>();
         }
-        Ok(())
+        Ok(energy)
     }
 
     fn check_gradient_buffers(&self, len_c: usize, len_t: usize) -> Result<()> {
@@ -345,16 +349,20 @@ impl<const S: usize, const D: usize> Minco<S, D> {
     pub fn energy_gradient(&mut self) -> Result<(f64, Vec<[f64; D]>, Vec<f64>)> {
         let mut gc = vec![[0.0; D]; Self::N * self.pieces];
         let mut gt = vec![0.0; self.pieces];
-        self.add_energy_partials(&mut gc, &mut gt)?;
+        let energy = self.add_energy_partials(&mut gc, &mut gt)?;
         let mut gq = vec![[0.0; D]; self.pieces - 1];
         let mut gtt = vec![0.0; self.pieces];
         self.propagate_gradient(&gc, &gt, &mut gq, &mut gtt)?;
-        Ok((self.energy(), gq, gtt))
+        Ok((energy, gq, gtt))
     }
 
     /// The solved trajectory (all-zero coefficients before the first successful solve).
     pub fn trajectory(&self) -> Trajectory<D> {
-        Trajectory::from_parts(Self::N, self.durations.clone(), self.coefficients().to_vec())
+        Trajectory::from_parts(
+            Self::N,
+            self.durations.clone(),
+            self.coefficients().to_vec(),
+        )
     }
 
     /// Whether the last [`Minco::solve`] succeeded.
