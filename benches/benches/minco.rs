@@ -10,7 +10,7 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use minco::Minco;
+use minco::{Minco, Optimizer, OptimizerConfig};
 
 fn point(i: usize) -> [f64; 3] {
     let x = i as f64;
@@ -49,11 +49,34 @@ fn bench_order<const S: usize>(c: &mut Criterion, pieces: &[usize]) {
     g.finish();
 }
 
+/// One full optimisation of a 10-piece trajectory (9 inner path points, v_max = 3 m/s,
+/// a_max = 3 m/s²). Target: ≤ 2 ms.
+fn bench_optimize(c: &mut Criterion) {
+    let path: Vec<[f64; 3]> = (1..10)
+        .map(|i| {
+            let x = f64::from(i);
+            [1.5 * x, 1.2 * (0.7 * x).sin(), 1.0 + 0.3 * (0.5 * x).cos()]
+        })
+        .collect();
+    let rest = |p: [f64; 3]| [p, [0.0; 3], [0.0; 3]];
+    let (start, goal) = (rest([0.0, 0.0, 1.3]), rest([15.0, 0.0, 1.0]));
+    let cfg = OptimizerConfig::default();
+    c.bench_function("minco_optimize_10_pieces", |b| {
+        b.iter(|| {
+            let Ok(mut opt) = Optimizer::<3, 3>::new(cfg, black_box(start), goal, black_box(&path))
+            else {
+                return;
+            };
+            black_box(opt.optimize().ok());
+        });
+    });
+}
+
 fn bench_minco(c: &mut Criterion) {
     bench_order::<2>(c, &[100]);
     bench_order::<3>(c, &[10, 100, 1000]);
     bench_order::<4>(c, &[10, 100, 1000]);
 }
 
-criterion_group!(benches, bench_minco);
+criterion_group!(benches, bench_minco, bench_optimize);
 criterion_main!(benches);

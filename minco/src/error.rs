@@ -20,7 +20,7 @@ pub enum MincoError {
     BadDuration {
         /// Index of the piece.
         index: usize,
-        /// The duration given [s].
+        /// The duration given \[s\].
         value: f64,
     },
     /// A NaN or infinite input.

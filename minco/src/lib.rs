@@ -14,7 +14,10 @@
 //!
 //! - [`Minco`] (with [`MinimumAcceleration`], [`MinimumJerk`], [`MinimumSnap`]): set up once,
 //!   solve for new (q, T) without allocating, energy and gradients;
-//! - [`Trajectory`]: evaluation, sampling and speed/acceleration bounds.
+//! - [`Trajectory`]: evaluation, sampling and speed/acceleration bounds;
+//! - [`Optimizer`]: a GCOPTER-style optimiser (waypoints and durations by L-BFGS with a
+//!   Lewis–Overton line search, soft speed/acceleration/corridor penalties) that turns a path
+//!   into a dynamically feasible trajectory.
 //!
 //! # Example
 //! ```
@@ -38,10 +41,19 @@
 
 mod band;
 mod error;
+mod lbfgs;
 mod minco;
+mod optimizer;
 mod poly;
 mod trajectory;
 
 pub use error::{MincoError, Result};
+pub use lbfgs::Status;
 pub use minco::{Minco, MinimumAcceleration, MinimumJerk, MinimumSnap};
+pub use optimizer::{Optimizer, OptimizerConfig, Solution};
 pub use trajectory::Trajectory;
+
+/// The README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

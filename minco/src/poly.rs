@@ -24,11 +24,11 @@ pub(crate) const FALLING: [[f64; MAX_COEFFS]; MAX_COEFFS] = {
     t
 };
 
-/// Powers t^0..t^(n−1) of `t`.
+/// Powers t^0..t^7 of `t`: enough for every degree and energy exponent of S ≤ 4.
 #[inline(always)]
-pub(crate) fn powers(t: f64) -> [f64; 2 * MAX_COEFFS] {
-    let mut p = [1.0; 2 * MAX_COEFFS];
-    for k in 1..2 * MAX_COEFFS {
+pub(crate) fn powers(t: f64) -> [f64; MAX_COEFFS] {
+    let mut p = [1.0; MAX_COEFFS];
+    for k in 1..MAX_COEFFS {
         p[k] = p[k - 1] * t;
     }
     p

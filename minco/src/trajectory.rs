@@ -48,7 +48,7 @@ impl<const D: usize> Trajectory<D> {
         }
     }
 
-    /// Total duration Σ T_i [s].
+    /// Total duration Σ T_i \[s\].
     pub fn duration(&self) -> f64 {
         self.starts.last().copied().unwrap_or(0.0) + self.durations.last().copied().unwrap_or(0.0)
     }
@@ -58,7 +58,7 @@ impl<const D: usize> Trajectory<D> {
         self.durations.len()
     }
 
-    /// Piece durations [s].
+    /// Piece durations \[s\].
     pub fn durations(&self) -> &[f64] {
         &self.durations
     }
@@ -74,7 +74,7 @@ impl<const D: usize> Trajectory<D> {
         self.coeffs.get(n * i..n * (i + 1))
     }
 
-    /// The piece containing time `t` [s] and the local time within it.
+    /// The piece containing time `t` \[s\] and the local time within it.
     ///
     /// Times at a junction belong to the later piece; the end time belongs to the last piece.
     ///
@@ -92,7 +92,7 @@ impl<const D: usize> Trajectory<D> {
         Ok((i, (t - self.starts[i]).min(self.durations[i])))
     }
 
-    /// The `k`-th time derivative at time `t` [s] (k = 0: position).
+    /// The `k`-th time derivative at time `t` \[s\] (k = 0: position).
     ///
     /// # Errors
     /// As [`Trajectory::locate`].
@@ -102,7 +102,7 @@ impl<const D: usize> Trajectory<D> {
         Ok(eval(&self.coeffs[n * i..n * (i + 1)], k, tau))
     }
 
-    /// Position at time `t` [s].
+    /// Position at time `t` \[s\].
     ///
     /// # Errors
     /// As [`Trajectory::locate`].
@@ -110,7 +110,7 @@ impl<const D: usize> Trajectory<D> {
         self.derivative(t, 0)
     }
 
-    /// Velocity at time `t` [s].
+    /// Velocity at time `t` \[s\].
     ///
     /// # Errors
     /// As [`Trajectory::locate`].
@@ -118,7 +118,7 @@ impl<const D: usize> Trajectory<D> {
         self.derivative(t, 1)
     }
 
-    /// Acceleration at time `t` [s].
+    /// Acceleration at time `t` \[s\].
     ///
     /// # Errors
     /// As [`Trajectory::locate`].
