@@ -87,14 +87,18 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         }
         let n = Self::N * pieces;
         let band = BandMatrix::new(n, Self::N);
-        Ok(Self {
+        let mut problem = Self {
             pieces,
-            coeffs: vec![[0.0; D]; band.padded_len()],
-            adjoint: vec![[0.0; D]; band.padded_len()],
+            coeffs: vec![[0.0; D]; band.len()],
+            adjoint: vec![[0.0; D]; band.len()],
             band,
             durations: vec![1.0; pieces],
             solved: false,
-        })
+        };
+        // The factors' structure does not depend on the durations: analyse it once.
+        problem.fill();
+        problem.band.analyze();
+        Ok(problem)
     }
 
     /// Number of pieces M.
@@ -109,7 +113,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
 
     /// The coefficients of the last solve: row 2S·i + k holds c_{i,k} for all D dimensions.
     pub fn coefficients(&self) -> &[[f64; D]] {
-        &self.coeffs[..Self::N * self.pieces]
+        &self.coeffs
     }
 
     /// Row of the waypoint condition of junction `i` (between pieces i and i+1).
@@ -141,7 +145,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
     /// Fills A(T).
     fn fill(&mut self) {
         let (n, m) = (Self::N, self.pieces);
-        self.band.clear();
+        self.band.reset();
         for j in 0..S {
             self.band.set(j, j, FALLING[j][j]);
         }
@@ -202,7 +206,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         for (i, q) in waypoints.iter().enumerate() {
             self.coeffs[Self::waypoint_row(i)] = *q;
         }
-        self.coeffs[n * m - S..n * m].copy_from_slice(tail);
+        self.coeffs[n * m - S..].copy_from_slice(tail);
         self.band.solve(&mut self.coeffs);
         if check_finite_rows(&self.coeffs, "coefficients").is_err() {
             return Err(MincoError::Singular { row: 0 });
@@ -307,8 +311,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         check_len("waypoint gradient", self.pieces - 1, grad_q.len())?;
         check_len("total duration gradient", self.pieces, grad_t_total.len())?;
         let (n, m) = (Self::N, self.pieces);
-        self.adjoint[..n * m].copy_from_slice(grad_c);
-        self.adjoint[n * m..].fill([0.0; D]);
+        self.adjoint.copy_from_slice(grad_c);
         self.band.solve_transposed(&mut self.adjoint);
         for (i, g) in grad_q.iter_mut().enumerate() {
             *g = self.adjoint[Self::waypoint_row(i)];
