@@ -176,6 +176,12 @@ impl BandMatrix {
                     core::cmp::Ordering::Equal => Kind::Pivot(i),
                     core::cmp::Ordering::Greater => Kind::Upper,
                 };
+                // An upper entry with an empty dot product is already final.
+                if matches!(kind, Kind::Upper)
+                    && self.pairs.len() == self.targets.last().map_or(0, |t| t.end)
+                {
+                    continue;
+                }
                 self.targets.push(Target {
                     idx: at(i, j),
                     kind,

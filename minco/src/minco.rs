@@ -2,8 +2,28 @@
 
 use crate::band::BandMatrix;
 use crate::error::{MincoError, Result};
-use crate::poly::{FALLING, eval, powers};
+use crate::poly::{FALLING, MAX_COEFFS, eval, powers};
 use crate::trajectory::Trajectory;
+
+/// `ENERGY_WEIGHT[s][k][l]` = k!/(k−s)! · l!/(l−s)! / (k + l − 2s + 1): the coefficient of
+/// c_k c_l T^(k+l−2s+1) in ∫₀^T ‖p^(s)‖² dt (zero where k or l < s).
+const ENERGY_WEIGHT: [[[f64; MAX_COEFFS]; MAX_COEFFS]; 5] = {
+    let mut w = [[[0.0; MAX_COEFFS]; MAX_COEFFS]; 5];
+    let mut s = 2;
+    while s <= 4 {
+        let mut k = s;
+        while k < 2 * s {
+            let mut l = s;
+            while l < 2 * s {
+                w[s][k][l] = FALLING[s][k] * FALLING[s][l] / (k + l - 2 * s + 1) as f64;
+                l += 1;
+            }
+            k += 1;
+        }
+        s += 1;
+    }
+    w
+};
 
 /// A MINCO problem of order `S` (2: minimum acceleration, 3: jerk, 4: snap) in `D` dimensions.
 ///
@@ -234,7 +254,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
             for k in S..n {
                 for l in S..n {
                     let e = k + l - 2 * S + 1;
-                    let w = FALLING[S][k] * FALLING[S][l] * tp[e] / e as f64;
+                    let w = ENERGY_WEIGHT[S][k][l] * tp[e];
                     let mut dot = 0.0;
                     for d in 0..D {
                         dot += c[k][d] * c[l][d];
@@ -264,7 +284,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
                 let mut g = [0.0; D];
                 for l in S..n {
                     let e = k + l - 2 * S + 1;
-                    let w = 2.0 * FALLING[S][k] * FALLING[S][l] * tp[e] / e as f64;
+                    let w = 2.0 * ENERGY_WEIGHT[S][k][l] * tp[e];
                     for d in 0..D {
                         g[d] += w * c[l][d];
                     }
