@@ -123,6 +123,13 @@ impl Affine {
     fn apply(&self, p: &Vector3<f64>) -> Vector3<f64> {
         self.m * p + self.t
     }
+
+    /// Maps `src` into `dst` (equal lengths, checked by the caller).
+    fn apply_all(&self, src: &[Point3<f64>], dst: &mut [Point3<f64>]) {
+        for (d, s) in dst.iter_mut().zip(src) {
+            d.coords = self.apply(&s.coords);
+        }
+    }
 }
 
 /// The kinematic chain of eq. (1) for one set of extrinsics.
@@ -236,10 +243,7 @@ impl KinematicChain {
         dst: &mut [Point3<f64>],
     ) -> Result<()> {
         check_len("destination points", src.len(), dst.len())?;
-        let a = Affine::from_isometry(&self.lidar_pose(body_pose, theta)?);
-        for (d, s) in dst.iter_mut().zip(src) {
-            d.coords = a.apply(&s.coords);
-        }
+        Affine::from_isometry(&self.lidar_pose(body_pose, theta)?).apply_all(src, dst);
         Ok(())
     }
 
@@ -273,10 +277,7 @@ impl KinematicChain {
         dst: &mut [Point3<f64>],
     ) -> Result<()> {
         check_len("destination points", src.len(), dst.len())?;
-        let a = Affine::from_isometry(&self.lidar_pose(body_pose, theta)?.inverse());
-        for (d, s) in dst.iter_mut().zip(src) {
-            d.coords = a.apply(&s.coords);
-        }
+        Affine::from_isometry(&self.lidar_pose(body_pose, theta)?.inverse()).apply_all(src, dst);
         Ok(())
     }
 

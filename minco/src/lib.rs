@@ -57,3 +57,19 @@ pub use trajectory::Trajectory;
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
+
+/// Helpers shared by the unit tests.
+#[cfg(test)]
+pub(crate) mod test_util {
+    /// ‖numeric − analytic‖ and ‖numeric‖ of two gradients.
+    pub(crate) fn gradient_error(numeric: &[f64], analytic: &[f64]) -> (f64, f64) {
+        let err = numeric
+            .iter()
+            .zip(analytic)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let norm = numeric.iter().map(|a| a * a).sum::<f64>().sqrt();
+        (err, norm)
+    }
+}

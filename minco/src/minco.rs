@@ -552,13 +552,7 @@ mod tests {
             num.push(richardson(&f, 1e-3 * p.t[i]));
             ana.push(gt[i]);
         }
-        let err: f64 = num
-            .iter()
-            .zip(&ana)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let norm: f64 = num.iter().map(|a| a * a).sum::<f64>().sqrt();
+        let (err, norm) = crate::test_util::gradient_error(&num, &ana);
         prop_assert!(
             err <= 1e-6 * norm,
             "gradient error {err} vs norm {norm}\nnum {num:?}\nana {ana:?}"

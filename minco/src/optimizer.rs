@@ -633,13 +633,7 @@ mod tests {
             let fm = opt.cost_and_gradient(&xm, &mut scratch).unwrap();
             num.push((fp - fm) / (2.0 * h));
         }
-        let err: f64 = num
-            .iter()
-            .zip(&g)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let norm: f64 = num.iter().map(|a| a * a).sum::<f64>().sqrt();
+        let (err, norm) = crate::test_util::gradient_error(&num, &g);
         prop_assert!(
             err <= 1e-6 * norm,
             "error {err} norm {norm}\nnum {num:?}\nana {g:?}"
