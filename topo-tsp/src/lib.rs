@@ -1,0 +1,61 @@
+//! Global sequencing for exploration: a topological graph of free space, the topology-aware
+//! transition cost, and open asymmetric TSP tools.
+//!
+//! This crate implements the global planning layer of FU-MPC (Section IV-B): paths on a
+//! topological graph of free space, the transition cost (7)
+//!
+//! d_ij = Σ_l (‖x_{l+1} − x_l‖ + 0.5 |z_{l+1} − z_l|) / (v_max / 2)
+//!
+//! along the graph path between viewpoints, the heading term (8) on arcs out of the current
+//! odometry node, and the cost matrix of the open tour (9).
+//!
+//! - [`TopoGraph`]: nodes connected within a radius when the caller's [`FreeSpace`] check passes
+//!   (neighbour search with kiddo), temporary per-cycle nodes, A* and Dijkstra;
+//! - [`transition_cost`], [`heading_cost`], [`cost_matrix`];
+//! - [`CostMatrix`]: a validated asymmetric matrix, with the open-tour reduction
+//!   ([`CostMatrix::with_free_return_to_start`]);
+//! - exact solvers for checking heuristics: [`held_karp`] (n ≤ 13) and [`brute_force`] (n ≤ 9);
+//! - [`parse_tsplib`]: TSPLIB ATSP/TSP text (explicit matrices and EUC_2D).
+//!
+//! The LKH-style heuristic ATSP solver is not part of this release yet.
+//!
+//! # Example
+//! ```
+//! use topo_tsp::{CostConfig, TopoGraph, cost_matrix, held_karp_open};
+//!
+//! # fn main() -> Result<(), topo_tsp::TspError> {
+//! let free = |_: &[f64; 3], _: &[f64; 3]| true;
+//! let mut g = TopoGraph::new();
+//! for x in 0..5 {
+//!     g.add_node([f64::from(x) * 2.0, 0.0, 1.0], 2.5, &free)?;
+//! }
+//! let odom = g.add_temporary_node([0.5, 0.0, 1.0], 2.5, &free)?;
+//! let views = [g.add_temporary_node([8.0, 0.5, 1.0], 2.5, &free)?, g.add_temporary_node([4.0, 0.5, 1.0], 2.5, &free)?];
+//! let m = cost_matrix(&g, odom, &views, [1.0, 0.0, 0.0], &CostConfig::default())?;
+//! let tour = held_karp_open(&m)?;
+//! assert_eq!(tour.order, vec![0, 2, 1]); // the nearer viewpoint first
+//! g.clear_temporary();
+//! # Ok(()) }
+//! ```
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![warn(rustdoc::broken_intra_doc_links)]
+
+mod cost;
+mod error;
+mod exact;
+mod graph;
+mod matrix;
+mod tsplib;
+
+pub use cost::{CostConfig, cost_matrix, heading_cost, transition_cost};
+pub use error::{Result, TspError};
+pub use exact::{BRUTE_FORCE_MAX, HELD_KARP_MAX, Tour, brute_force, held_karp, held_karp_open};
+pub use graph::{FreeSpace, GraphPath, NodeId, ShortestPaths, TopoGraph};
+pub use matrix::CostMatrix;
+pub use tsplib::{ProblemKind, TsplibInstance, parse_tsplib};
+
+/// The README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
