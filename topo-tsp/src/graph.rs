@@ -91,12 +91,12 @@ impl Default for TopoGraph {
     }
 }
 
-/// A node path and its length [m].
+/// A node path and its length \[m\].
 #[derive(Debug, Clone, PartialEq)]
 pub struct GraphPath {
     /// The nodes from start to goal.
     pub nodes: Vec<NodeId>,
-    /// Sum of the edge lengths [m].
+    /// Sum of the edge lengths \[m\].
     pub length: f64,
 }
 
@@ -133,7 +133,7 @@ pub struct ShortestPaths {
 }
 
 impl ShortestPaths {
-    /// Distance [m] from the source to `node` (+∞ if unreachable or out of range).
+    /// Distance \[m\] from the source to `node` (+∞ if unreachable or out of range).
     pub fn distance(&self, node: NodeId) -> f64 {
         self.dist.get(node).copied().unwrap_or(f64::INFINITY)
     }
@@ -189,7 +189,7 @@ impl TopoGraph {
             })
     }
 
-    /// Neighbours of a node with the edge lengths [m].
+    /// Neighbours of a node with the edge lengths \[m\].
     ///
     /// # Errors
     /// [`TspError::NoSuchNode`] for an unknown id.
@@ -250,7 +250,7 @@ impl TopoGraph {
         Ok(id)
     }
 
-    /// Adds a permanent node, connected to the nodes within `radius` [m] whose segment is free.
+    /// Adds a permanent node, connected to the nodes within `radius` \[m\] whose segment is free.
     ///
     /// # Errors
     /// [`TspError::NonFinite`] for a bad position, [`TspError::InvalidConfig`] for a bad radius

@@ -15,7 +15,9 @@
 //! - [`CostMatrix`]: a validated asymmetric matrix, with the open-tour reduction
 //!   ([`CostMatrix::with_free_return_to_start`]);
 //! - exact solvers for checking heuristics: [`held_karp`] (n ≤ 13) and [`brute_force`] (n ≤ 9);
-//! - [`parse_tsplib`]: TSPLIB ATSP/TSP text (explicit matrices and EUC_2D).
+//! - [`parse_tsplib`]: TSPLIB ATSP/TSP text (explicit matrices and EUC_2D);
+//! - [`held_karp_bound`]: the Held–Karp lower bound by subgradient optimisation over 1-trees of
+//!   the symmetric transform, and [`alpha_candidates`]: α-nearness candidate lists.
 //!
 //! The LKH-style heuristic ATSP solver is not part of this release yet.
 //!
@@ -41,6 +43,7 @@
 #![deny(missing_docs)]
 #![warn(rustdoc::broken_intra_doc_links)]
 
+mod bound;
 mod cost;
 mod error;
 mod exact;
@@ -48,6 +51,7 @@ mod graph;
 mod matrix;
 mod tsplib;
 
+pub use bound::{BoundConfig, HeldKarpBound, alpha_candidates, held_karp_bound};
 pub use cost::{CostConfig, cost_matrix, heading_cost, transition_cost};
 pub use error::{Result, TspError};
 pub use exact::{BRUTE_FORCE_MAX, HELD_KARP_MAX, Tour, brute_force, held_karp, held_karp_open};
