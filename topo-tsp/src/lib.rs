@@ -49,6 +49,7 @@ mod error;
 mod exact;
 mod graph;
 mod matrix;
+mod solver;
 mod tsplib;
 
 pub use bound::{BoundConfig, HeldKarpBound, alpha_candidates, held_karp_bound};
@@ -57,6 +58,7 @@ pub use error::{Result, TspError};
 pub use exact::{BRUTE_FORCE_MAX, HELD_KARP_MAX, Tour, brute_force, held_karp, held_karp_open};
 pub use graph::{FreeSpace, GraphPath, NodeId, ShortestPaths, TopoGraph};
 pub use matrix::CostMatrix;
+pub use solver::{Solution, SolverConfig, solve, solve_open};
 pub use tsplib::{ProblemKind, TsplibInstance, parse_tsplib};
 
 /// The README's example, compiled and run as a doctest.

@@ -1,0 +1,94 @@
+//! The solver on the TSPLIB ATSP instances of `../shared/data/tsplib/` (skipped with a message
+//! when the folder is absent).
+//!
+//! `instances_under_100_nodes_are_near_optimal` runs in CI. The issue's target, every published
+//! optimum with default settings, is `all_published_optima` (ignored: run it with
+//! `cargo test --release -p topo-tsp --test tsplib_optima -- --ignored`); it does not pass yet.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::{Path, PathBuf};
+
+use topo_tsp::{SolverConfig, parse_tsplib, solve};
+
+fn data_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/tsplib");
+    if dir.join("optima.tsv").is_file() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "skipping: {} not found (the shared data folder is not beside the project)",
+            dir.display()
+        );
+        None
+    }
+}
+
+/// (name, n, optimum) rows of optima.tsv.
+fn optima(dir: &Path) -> Vec<(String, usize, f64)> {
+    std::fs::read_to_string(dir.join("optima.tsv"))
+        .unwrap()
+        .lines()
+        .filter_map(|l| {
+            let c: Vec<&str> = l.split('\t').collect();
+            Some((
+                c.first()?.trim().to_string(),
+                c.get(1)?.trim().parse().ok()?,
+                c.get(2)?.trim().parse().ok()?,
+            ))
+        })
+        .collect()
+}
+
+fn check(dir: &Path, name: &str, n: usize, opt: f64, max_gap: f64) {
+    let text = std::fs::read_to_string(dir.join(format!("{name}.atsp"))).unwrap();
+    let inst = parse_tsplib(&text).unwrap();
+    let sol = solve(&inst.matrix, &SolverConfig::default(), || false).unwrap();
+    let mut seen = vec![false; n];
+    assert_eq!(sol.tour.order.len(), n, "{name}");
+    assert!(
+        sol.tour
+            .order
+            .iter()
+            .all(|&v| !std::mem::replace(&mut seen[v], true)),
+        "{name}: not a permutation"
+    );
+    assert_eq!(
+        sol.tour.length,
+        inst.matrix.closed_length(&sol.tour.order),
+        "{name}"
+    );
+    assert!(
+        sol.tour.length >= opt,
+        "{name}: {} below the published optimum {opt}",
+        sol.tour.length
+    );
+    assert!(
+        sol.lower_bound <= opt + 1e-6,
+        "{name}: bound {} above the optimum {opt}",
+        sol.lower_bound
+    );
+    let gap = (sol.tour.length - opt) / opt;
+    assert!(
+        gap <= max_gap,
+        "{name}: {} is {:.3} % above the optimum {opt}",
+        sol.tour.length,
+        100.0 * gap
+    );
+}
+
+#[test]
+fn instances_under_100_nodes_are_near_optimal() {
+    let Some(dir) = data_dir() else { return };
+    for (name, n, opt) in optima(&dir).into_iter().filter(|r| r.1 < 100) {
+        check(&dir, &name, n, opt, 0.005);
+    }
+}
+
+#[test]
+#[ignore = "the target of the solver issue; not all optima are reached yet"]
+fn all_published_optima() {
+    let Some(dir) = data_dir() else { return };
+    for (name, n, opt) in optima(&dir) {
+        check(&dir, &name, n, opt, 0.0);
+    }
+}
