@@ -61,6 +61,7 @@ pub(crate) fn minimize(
     let mut d = vec![0.0; n];
     let mut x_new = vec![0.0; n];
     let mut g_new = vec![0.0; n];
+    let (mut s_new, mut y_new) = (vec![0.0; n], vec![0.0; n]);
     let mut status = Status::MaxIterations;
     let mut iterations = 0;
     let past = settings.past.max(1);
@@ -139,15 +140,17 @@ pub(crate) fn minimize(
             break;
         };
         iterations += 1;
-        // History update (cautious: only with positive curvature).
-        let i = head;
+        // History update (cautious: only with positive curvature). The pair is built in
+        // scratch so a rejected one never overwrites the oldest stored pair.
         for k in 0..n {
-            s_hist[i][k] = x_new[k] - x[k];
-            y_hist[i][k] = g_new[k] - g[k];
+            s_new[k] = x_new[k] - x[k];
+            y_new[k] = g_new[k] - g[k];
         }
-        let sy = dot(&s_hist[i], &y_hist[i]);
-        if sy > 1e-12 * dot(&s_hist[i], &s_hist[i]).sqrt() * dot(&y_hist[i], &y_hist[i]).sqrt() {
-            rho[i] = 1.0 / sy;
+        let sy = dot(&s_new, &y_new);
+        if sy > 1e-12 * dot(&s_new, &s_new).sqrt() * dot(&y_new, &y_new).sqrt() {
+            s_hist[head].copy_from_slice(&s_new);
+            y_hist[head].copy_from_slice(&y_new);
+            rho[head] = 1.0 / sy;
             head = (head + 1) % m;
             len = (len + 1).min(m);
         }

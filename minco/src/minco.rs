@@ -45,7 +45,7 @@ const ENERGY_WEIGHT: [[[f64; MAX_COEFFS]; MAX_COEFFS]; 5] = {
 /// let mut m = MinimumJerk::<3>::new(2)?;
 /// let rest = |p: [f64; 3]| [p, [0.0; 3], [0.0; 3]]; // position, velocity, acceleration
 /// m.solve(&rest([0.0; 3]), &rest([2.0, 0.0, 0.0]), &[[1.0, 1.0, 0.0]], &[1.0, 1.0])?;
-/// let traj = m.trajectory();
+/// let traj = m.trajectory()?;
 /// assert!((traj.position(1.0)?[1] - 1.0).abs() < 1e-12); // passes the waypoint
 /// assert!(m.energy() > 0.0);
 /// # Ok(()) }
@@ -89,6 +89,8 @@ fn check_len(what: &'static str, expected: usize, found: usize) -> Result<()> {
 
 impl<const S: usize, const D: usize> Minco<S, D> {
     const N: usize = 2 * S;
+    /// Largest number of pieces: keeps every size computation far from overflow.
+    const MAX_PIECES: usize = 1 << 24;
 
     /// A problem with `pieces` pieces.
     ///
@@ -104,6 +106,12 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         }
         if pieces == 0 {
             return Err(MincoError::NoPieces);
+        }
+        if pieces > Self::MAX_PIECES {
+            return Err(MincoError::InvalidConfig {
+                what: "pieces",
+                reason: "at most 2^24 pieces",
+            });
         }
         let n = Self::N * pieces;
         let band = BandMatrix::new(n, Self::N);
@@ -126,12 +134,13 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         self.pieces
     }
 
-    /// The durations of the last solve \[s\].
+    /// The durations of the last solve \[s\] (meaningful only while [`Minco::is_solved`]).
     pub fn durations(&self) -> &[f64] {
         &self.durations
     }
 
-    /// The coefficients of the last solve: row 2S·i + k holds c_{i,k} for all D dimensions.
+    /// The coefficients of the last solve: row 2S·i + k holds c_{i,k} for all D dimensions
+    /// (meaningful only while [`Minco::is_solved`]).
     pub fn coefficients(&self) -> &[[f64; D]] {
         &self.coeffs
     }
@@ -379,13 +388,19 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         Ok((energy, gq, gtt))
     }
 
-    /// The solved trajectory (all-zero coefficients before the first successful solve).
-    pub fn trajectory(&self) -> Trajectory<D> {
-        Trajectory::from_parts(
+    /// The trajectory of the last successful solve.
+    ///
+    /// # Errors
+    /// [`MincoError::NotSolved`] before a solve or after a failed one.
+    pub fn trajectory(&self) -> Result<Trajectory<D>> {
+        if !self.solved {
+            return Err(MincoError::NotSolved);
+        }
+        Ok(Trajectory::from_parts(
             Self::N,
             self.durations.clone(),
             self.coefficients().to_vec(),
-        )
+        ))
     }
 
     /// Whether the last [`Minco::solve`] succeeded.
@@ -478,7 +493,7 @@ mod tests {
 
     fn check_conditions<const S: usize>(p: &Problem<S>) -> std::result::Result<(), TestCaseError> {
         let m = solved(p);
-        let traj = m.trajectory();
+        let traj = m.trajectory().unwrap();
         let close =
             |a: [f64; 3], b: [f64; 3], what: &str| -> std::result::Result<(), TestCaseError> {
                 for d in 0..3 {
@@ -552,11 +567,16 @@ mod tests {
             num.push(richardson(&f, 1e-3 * p.t[i]));
             ana.push(gt[i]);
         }
-        let (err, norm) = crate::test_util::gradient_error(&num, &ana);
-        prop_assert!(
-            err <= 1e-6 * norm,
-            "gradient error {err} vs norm {norm}\nnum {num:?}\nana {ana:?}"
-        );
+        // The waypoint block and the duration block are checked separately, so a large ∂J/∂q
+        // cannot hide a wrong dJ/dT.
+        let nq = 3 * p.q.len();
+        for (what, range) in [("waypoints", 0..nq), ("durations", nq..num.len())] {
+            let (err, norm) = crate::test_util::gradient_error(&num[range.clone()], &ana[range]);
+            prop_assert!(
+                err <= 1e-6 * norm.max(1e-12),
+                "{what} gradient error {err} vs norm {norm}\nnum {num:?}\nana {ana:?}"
+            );
+        }
         Ok(())
     }
 
@@ -585,7 +605,7 @@ mod tests {
             tail[0] = [b];
             let mut m = Minco::<S, 1>::new(1).unwrap();
             m.solve(&head, &tail, &[], &[t]).unwrap();
-            let traj = m.trajectory();
+            let traj = m.trajectory().unwrap();
             for k in 0..=20 {
                 let x = t * f64::from(k) / 20.0;
                 let expected = a + (b - a) * shape(x / t);
@@ -653,6 +673,8 @@ mod tests {
         );
         assert!(r.is_err());
         assert!(!m.is_solved());
+        assert!(matches!(m.trajectory(), Err(MincoError::NotSolved)));
+        assert!(matches!(Minco::<3, 3>::new(1 << 60), Err(MincoError::InvalidConfig { .. })));
         // Mismatched gradient buffers.
         m.solve(&z, &z, &[[1.0; 3]], &[1.0, 1.0]).unwrap();
         let mut gq = vec![[0.0; 3]; 2];

@@ -32,14 +32,14 @@ pub struct OptimizerConfig {
     pub penalty_weight: f64,
     /// Width μ of the soft hinge, in the squared units of each constraint. Default 1e-2.
     pub hinge_width: f64,
-    /// Samples K per piece for the penalty quadrature. Default 16.
+    /// Samples K per piece for the penalty quadrature, 1..=65536. Default 16.
     pub samples_per_piece: usize,
     /// Weight w_q pulling inner waypoints toward the given path points; 0 leaves them free. Default 0.
     pub waypoint_weight: f64,
     /// Radius r \[m\] of a corridor around the path, or `None` for no corridor. Piece i is kept
     /// within r of path segment i (head → first path point → … → tail). Default `None`.
     pub corridor_radius: Option<f64>,
-    /// L-BFGS memory. Default 8.
+    /// L-BFGS memory, 1..=1024. Default 8.
     pub memory: usize,
     /// Iteration budget. Default 300.
     pub max_iterations: usize,
@@ -120,10 +120,13 @@ impl OptimizerConfig {
         if let Some(r) = self.corridor_radius {
             positive(r, "corridor_radius")?;
         }
-        if self.samples_per_piece == 0 || self.memory == 0 || self.max_iterations == 0 {
+        if !(1..=1 << 16).contains(&self.samples_per_piece)
+            || !(1..=1024).contains(&self.memory)
+            || self.max_iterations == 0
+        {
             return Err(MincoError::InvalidConfig {
                 what: "samples_per_piece, memory, max_iterations",
-                reason: "must be at least 1",
+                reason: "need 1 ≤ samples_per_piece ≤ 65536, 1 ≤ memory ≤ 1024, max_iterations ≥ 1",
             });
         }
         Ok(())
@@ -143,6 +146,11 @@ pub struct Solution<const D: usize> {
     pub iterations: usize,
     /// How the minimisation ended.
     pub status: Status,
+    /// Largest speed of the trajectory \[m/s\], by dense sampling (64 per piece): compare it
+    /// with v_max — the limits are soft penalties, so an unconverged run may exceed them.
+    pub max_speed: f64,
+    /// Largest acceleration \[m/s²\], by dense sampling (64 per piece).
+    pub max_acceleration: f64,
 }
 
 /// T(τ) = τ²/2 + τ + 1 for τ > 0, 1/(τ²/2 − τ + 1) otherwise: a smooth bijection ℝ → (0, ∞).
@@ -307,6 +315,9 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
         path: &[[f64; D]],
     ) -> Result<Self> {
         config.validate()?;
+        // Checks the order and size before anything indexes the boundary states.
+        let m = path.len() + 1;
+        let minco = Minco::new(m)?;
         let finite = |rows: &[[f64; D]]| rows.iter().flatten().all(|v| v.is_finite());
         if !finite(&head) || !finite(&tail) || !finite(path) {
             return Err(MincoError::NonFinite {
@@ -323,12 +334,10 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
                 ));
             }
         }
-        let m = path.len() + 1;
         let mut polyline = Vec::with_capacity(m + 1);
         polyline.push(head[0]);
         polyline.extend_from_slice(path);
         polyline.push(tail[0]);
-        let minco = Minco::new(m)?;
         let n = 2 * S * m;
         Ok(Self {
             config,
@@ -525,13 +534,15 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
         });
         // Re-solve at the final point so the trajectory matches x.
         let cost = self.cost_and_gradient(&x, &mut grad)?;
-        let trajectory = self.minco.trajectory();
         if !cost.is_finite() {
             return Err(MincoError::Infeasible(
                 "the optimisation produced no finite trajectory",
             ));
         }
+        let trajectory = self.minco.trajectory()?;
         Ok(Solution {
+            max_speed: trajectory.max_speed(64),
+            max_acceleration: trajectory.max_acceleration(64),
             trajectory,
             cost,
             initial_cost,
@@ -567,11 +578,22 @@ mod tests {
             let fd = (hinge(x + h, mu).0 - hinge(x - h, mu).0) / (2.0 * h);
             assert!((fd - d).abs() < 1e-6, "x {x}");
         }
-        // Continuity of value, slope and curvature at the joints.
+        // Continuity of value, slope and curvature at the joints 0 and μ.
         let e = 1e-9;
         assert!((hinge(mu - e, mu).0 - hinge(mu + e, mu).0).abs() < 1e-8);
         assert!((hinge(mu - e, mu).1 - hinge(mu + e, mu).1).abs() < 1e-8);
         assert!(hinge(e, mu).1 < 1e-8);
+        let curvature = |x: f64| {
+            let h = 1e-6;
+            (hinge(x + h, mu).1 - hinge(x - h, mu).1) / (2.0 * h)
+        };
+        for joint in [0.0, mu] {
+            let (left, right) = (curvature(joint - 1e-4), curvature(joint + 1e-4));
+            assert!((left - right).abs() < 1e-2, "curvature jumps at {joint}: {left} vs {right}");
+        }
+        // Away from the joints the curvature is what the formula says: 6x/μ² − 6x²/μ³.
+        let x = 0.5 * mu;
+        assert!((curvature(x) - (6.0 * x / (mu * mu) - 6.0 * x * x / mu.powi(3))).abs() < 1e-5);
     }
 
     fn random_path(seed: u64, n: usize) -> Vec<[f64; 3]> {
@@ -633,11 +655,15 @@ mod tests {
             let fm = opt.cost_and_gradient(&xm, &mut scratch).unwrap();
             num.push((fp - fm) / (2.0 * h));
         }
-        let (err, norm) = crate::test_util::gradient_error(&num, &g);
-        prop_assert!(
-            err <= 1e-6 * norm,
-            "error {err} norm {norm}\nnum {num:?}\nana {g:?}"
-        );
+        // Waypoint block and duration block separately.
+        let nq = 3 * inner;
+        for (what, range) in [("waypoints", 0..nq), ("durations", nq..num.len())] {
+            let (err, norm) = crate::test_util::gradient_error(&num[range.clone()], &g[range]);
+            prop_assert!(
+                err <= 1e-6 * norm.max(1e-12),
+                "{what}: error {err} norm {norm}\nnum {num:?}\nana {g:?}"
+            );
+        }
         Ok(())
     }
 

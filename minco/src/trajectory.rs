@@ -14,7 +14,7 @@ use crate::poly::eval;
 /// # fn main() -> Result<(), minco::MincoError> {
 /// let mut m = MinimumJerk::<1>::new(1)?;
 /// m.solve(&[[0.0], [0.0], [0.0]], &[[1.0], [0.0], [0.0]], &[], &[2.0])?;
-/// let t = m.trajectory();
+/// let t = m.trajectory()?;
 /// assert_eq!(t.duration(), 2.0);
 /// assert!((t.position(1.0)?[0] - 0.5).abs() < 1e-12); // symmetric rest-to-rest motion
 /// assert!(t.max_speed(64) > 0.9);
@@ -29,6 +29,9 @@ pub struct Trajectory<const D: usize> {
 }
 
 impl<const D: usize> Trajectory<D> {
+    /// Most samples [`Trajectory::sample`] returns.
+    pub const MAX_SAMPLES: usize = 1 << 24;
+
     pub(crate) fn from_parts(
         coeffs_per_piece: usize,
         durations: Vec<f64>,
@@ -129,16 +132,19 @@ impl<const D: usize> Trajectory<D> {
     /// Positions at t = 0, dt, 2dt, … up to and including the end time.
     ///
     /// # Errors
-    /// [`MincoError::InvalidConfig`] unless `dt` is positive and finite.
+    /// [`MincoError::InvalidConfig`] unless `dt` is positive and finite and gives at most
+    /// [`Trajectory::MAX_SAMPLES`] samples.
     pub fn sample(&self, dt: f64) -> Result<Vec<(f64, [f64; D])>> {
-        if !(dt > 0.0 && dt.is_finite()) {
+        let total = self.duration();
+        let steps = total / dt;
+        if !(dt > 0.0 && dt.is_finite() && steps <= Self::MAX_SAMPLES as f64) {
             return Err(MincoError::InvalidConfig {
                 what: "sample step",
-                reason: "must be positive and finite",
+                reason: "must be positive, finite, and give at most MAX_SAMPLES samples",
             });
         }
-        let total = self.duration();
-        let steps = (total / dt).floor() as usize;
+        // At most MAX_SAMPLES, checked above.
+        let steps = steps.floor() as usize;
         let mut out = Vec::with_capacity(steps + 2);
         for k in 0..=steps {
             let t = (k as f64 * dt).min(total);

@@ -16,12 +16,12 @@ impl Lcg {
     }
 }
 
-#[test]
-fn two_hundred_random_paths_respect_the_limits() {
-    let mut rng = Lcg(2024);
+/// Runs the optimiser of order S on `cases` random paths and checks limits, cost and goal.
+fn random_paths_respect_the_limits<const S: usize>(cases: usize, seed: u64) {
+    let mut rng = Lcg(seed);
     let mut worst_v: f64 = 0.0;
     let mut worst_a: f64 = 0.0;
-    for case in 0..200 {
+    for case in 0..cases {
         let inner = 1 + (rng.next() * 6.0) as usize;
         let v_max = 1.0 + 3.0 * rng.next();
         let a_max = 1.0 + 4.0 * rng.next();
@@ -37,9 +37,13 @@ fn two_hundred_random_paths_respect_the_limits() {
             path.push(p);
         }
         let goal = path.pop().unwrap();
-        let rest = |x: [f64; 3]| [x, [0.0; 3], [0.0; 3]];
+        let rest = |x: [f64; 3]| {
+            let mut s = [[0.0; 3]; S];
+            s[0] = x;
+            s
+        };
         let cfg = OptimizerConfig::default().with_limits(v_max, a_max);
-        let mut opt = Optimizer::<3, 3>::new(cfg, rest(start), rest(goal), &path).unwrap();
+        let mut opt = Optimizer::<S, 3>::new(cfg, rest(start), rest(goal), &path).unwrap();
         let sol = opt.optimize().unwrap();
         let v = sol.trajectory.max_speed(64) / v_max;
         let a = sol.trajectory.max_acceleration(64) / a_max;
@@ -59,7 +63,18 @@ fn two_hundred_random_paths_respect_the_limits() {
             "case {case}: misses the goal"
         );
     }
-    println!("worst speed ratio {worst_v:.4}, worst acceleration ratio {worst_a:.4}");
+    println!("S = {S}: worst speed ratio {worst_v:.4}, worst acceleration ratio {worst_a:.4}");
+}
+
+#[test]
+fn two_hundred_random_paths_respect_the_limits() {
+    random_paths_respect_the_limits::<3>(200, 2024);
+}
+
+#[test]
+fn minimum_acceleration_and_snap_respect_the_limits() {
+    random_paths_respect_the_limits::<2>(40, 7);
+    random_paths_respect_the_limits::<4>(40, 11);
 }
 
 #[test]
@@ -112,9 +127,20 @@ fn bad_requests_are_typed_errors() {
         opt.cost_and_gradient(&x, &mut g),
         Err(MincoError::NonFinite { .. })
     ));
+    // Orders outside 2..=4 are refused before anything is indexed.
+    assert!(matches!(
+        Optimizer::<1, 3>::new(cfg, [[0.0; 3]], [[1.0; 3]], &[]),
+        Err(MincoError::UnsupportedOrder(1))
+    ));
+    let mut huge = cfg;
+    huge.memory = usize::MAX;
+    assert!(matches!(huge.validate(), Err(MincoError::InvalidConfig { .. })));
     // Zero inner points: a single piece still optimises.
     let mut single =
         Optimizer::<3, 3>::new(cfg, rest([0.0; 3]), rest([2.0, 0.0, 0.0]), &[]).unwrap();
     let sol = single.optimize().unwrap();
     assert!(sol.trajectory.max_speed(64) <= 3.0 * 1.02);
+    assert_eq!(sol.max_speed, sol.trajectory.max_speed(64));
+    assert!(matches!(sol.trajectory.sample(1e-300), Err(MincoError::InvalidConfig { .. })));
+    assert!(matches!(sol.trajectory.sample(f64::NAN), Err(MincoError::InvalidConfig { .. })));
 }

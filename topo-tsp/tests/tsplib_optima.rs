@@ -4,7 +4,7 @@
 //! `instances_under_100_nodes_are_near_optimal` runs in CI. The target, every published
 //! optimum with default settings, is `all_published_optima` (ignored: run it with
 //! `cargo test --release -p topo-tsp --test tsplib_optima -- --ignored`); it does not pass yet.
-#![allow(clippy::unwrap_used, clippy::expect_used)]
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stderr)]
 
 use std::path::{Path, PathBuf};
 
