@@ -322,8 +322,9 @@ impl Deskewer {
 
     /// Deskews `points` into `out` (same length).
     ///
-    /// Pose and angle samples must be non-empty, finite and strictly increasing in time, and
-    /// every point time (and a `BodyAt` time) must lie within both spans: nothing is extrapolated.
+    /// Pose and angle samples must be non-empty, finite and strictly increasing in time; every
+    /// point time must lie within both spans, and a `BodyAt` time within the pose span (it
+    /// needs no motor angle): nothing is extrapolated.
     /// A point with non-finite coordinates maps to non-finite coordinates.
     ///
     /// # Errors

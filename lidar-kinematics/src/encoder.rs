@@ -80,16 +80,23 @@ impl EncoderConfig {
     }
 
     /// The count of an angle \[rad\]: ⌊wrap(θ) / resolution⌋, in 0..counts_per_revolution.
-    pub fn count(&self, theta: f64) -> u32 {
+    ///
+    /// # Errors
+    /// [`KinematicsError::NonFinite`] for a non-finite angle.
+    pub fn count(&self, theta: f64) -> Result<u32> {
+        check_finite(theta, "motor angle")?;
         let c = (wrap_to_two_pi(theta) / self.resolution()).floor();
         // `c` lies in [0, counts] and is an integer; the clamp guards the
         // rounding edge where wrap(θ)/resolution rounds up to `counts`.
-        (c as u32).min(self.counts_per_revolution - 1)
+        Ok((c as u32).min(self.counts_per_revolution - 1))
     }
 
     /// The angle an encoder reports for a true angle \[rad\]: count × resolution, in [0, 2π).
-    pub fn quantise(&self, theta: f64) -> f64 {
-        f64::from(self.count(theta)) * self.resolution()
+    ///
+    /// # Errors
+    /// [`KinematicsError::NonFinite`] for a non-finite angle.
+    pub fn quantise(&self, theta: f64) -> Result<f64> {
+        Ok(f64::from(self.count(theta)?) * self.resolution())
     }
 }
 
@@ -193,7 +200,7 @@ impl Encoder {
             let (tb, b) = self.history[i];
             a + (b - a) * (ts - ta) / (tb - ta)
         };
-        let count = self.config.count(theta);
+        let count = self.config.count(theta)?;
         Ok(EncoderReading {
             time: t,
             count,
@@ -211,9 +218,12 @@ mod tests {
         #[test]
         fn quantisation_error_is_below_one_count(theta in -1e3f64..1e3, counts in 1u32..100_000) {
             let cfg = EncoderConfig::try_new(counts, 0.0).unwrap();
-            let q = cfg.quantise(theta);
+            let q = cfg.quantise(theta).unwrap();
             prop_assert!((0.0..TAU).contains(&q));
-            let err = crate::angle::difference(q, theta);
+            // How far the true angle lies past its count, measured forward around the circle
+            // (a signed difference would wrap for coarse encoders with a count of over π).
+            let err = crate::angle::wrap_to_two_pi(theta - q);
+            let err = if err > TAU - 1e-9 { err - TAU } else { err };
             prop_assert!(err >= -1e-9 && err < cfg.resolution() + 1e-9, "err {err}");
         }
 
@@ -231,7 +241,7 @@ mod tests {
             }
             enc.record(t_read, omega * t_read).ok();
             let r = enc.read(t_read).unwrap();
-            let expected = cfg.quantise(omega * (t_read - latency));
+            let expected = cfg.quantise(omega * (t_read - latency)).unwrap();
             let diff = crate::angle::difference(expected, r.angle).abs();
             prop_assert!(diff <= cfg.resolution() + 1e-9);
         }

@@ -67,8 +67,8 @@ pub use encoder::{Encoder, EncoderConfig, EncoderReading};
 pub use error::{KinematicsError, Result};
 pub use motor::{MotorLimits, MotorModel, MotorState};
 pub use sensor::{
-    Beam, BeamPattern, FieldOfView, Frame, LidarSensor, NonRepetitivePattern, RangeLimits,
-    SpinningPattern, VisibilityGate,
+    Beam, BeamPattern, FieldOfView, Frame, LidarSensor, MAX_POINTS_PER_FRAME, NonRepetitivePattern,
+    RangeLimits, SpinningPattern, VisibilityGate,
 };
 
 /// The README's example, compiled and run as a doctest.

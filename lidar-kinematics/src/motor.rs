@@ -314,11 +314,31 @@ mod tests {
             }
         }
 
+        /// Eq. (3) with the command clipped to the speed limits (commands reach beyond them).
         #[test]
-        fn speed_model_is_eq3(theta in -10.0f64..10.0, cmd in -5.0f64..5.0, dt in 1e-3f64..1.0) {
-            let motor = MotorModel::new(MotorLimits::try_new(-6.0, 6.0, 1.0).unwrap());
+        fn speed_model_is_eq3(theta in -10.0f64..10.0, cmd in -10.0f64..10.0, dt in 1e-3f64..1.0) {
+            let motor = MotorModel::new(MotorLimits::try_new(-6.0, 4.0, 1.0).unwrap());
             let s = motor.step_speed(MotorState::new(theta, 0.0), cmd, dt).unwrap();
-            prop_assert_eq!(s, MotorState::new(theta + cmd * dt, cmd));
+            let w = cmd.clamp(-6.0, 4.0);
+            prop_assert_eq!(s, MotorState::new(theta + w * dt, w));
+        }
+
+        /// Commands beyond ±u_max act as ±u_max (the constraint (21)), then eqs. (11)–(12).
+        #[test]
+        fn acceleration_commands_are_clipped(
+            omega0 in -5.0f64..5.0,
+            controls in proptest::collection::vec(-100.0f64..100.0, 1..30),
+            dt in 1e-3f64..0.3,
+        ) {
+            let limits = MotorLimits::try_new(-6.0, 6.0, 8.0).unwrap();
+            let motor = MotorModel::new(limits);
+            let states = motor.rollout(MotorState::new(0.0, omega0), &controls, dt).unwrap();
+            let (mut theta, mut omega) = (0.0, omega0);
+            for (k, u) in controls.iter().enumerate() {
+                omega = (omega + u.clamp(-8.0, 8.0) * dt).clamp(-6.0, 6.0);
+                theta += omega * dt;
+                prop_assert_eq!(states[k + 1], MotorState::new(theta, omega));
+            }
         }
     }
 

@@ -39,6 +39,9 @@ use crate::chain::KinematicChain;
 use crate::error::{KinematicsError, Result, check_finite};
 use crate::motor::check_dt;
 
+/// Most beams a frame may have (keeps every index computation far from overflow).
+pub const MAX_POINTS_PER_FRAME: usize = 1 << 28;
+
 /// One beam of a frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Beam {
@@ -250,6 +253,16 @@ impl SpinningPattern {
         if azimuth_steps == 0 {
             return Err(invalid("azimuth steps", "must be at least 1"));
         }
+        if elevations
+            .len()
+            .checked_mul(azimuth_steps)
+            .is_none_or(|p| p > MAX_POINTS_PER_FRAME)
+        {
+            return Err(invalid(
+                "spinning pattern",
+                "more than 2^28 beams per frame",
+            ));
+        }
         check_dt(frame_period)?;
         Ok(Self {
             elevations,
@@ -350,6 +363,12 @@ impl NonRepetitivePattern {
         azimuth_turns_per_frame: f64,
         elevation_cycles_per_frame: f64,
     ) -> Result<Self> {
+        if points_per_frame > MAX_POINTS_PER_FRAME {
+            return Err(invalid(
+                "non-repetitive pattern",
+                "more than 2^28 beams per frame",
+            ));
+        }
         if points_per_frame == 0 || lines == 0 {
             return Err(invalid(
                 "non-repetitive pattern",
@@ -835,6 +854,8 @@ mod tests {
             Err(KinematicsError::NonFinite { .. })
         ));
         assert!(SpinningPattern::try_new(vec![2.0], 10, 0.1).is_err());
+        assert!(SpinningPattern::try_new(vec![0.0, 0.1], usize::MAX, 0.1).is_err());
+        assert!(NonRepetitivePattern::try_new(usize::MAX, 0.1, 4, 0.0, 1.0, 1.0, 1.5).is_err());
         assert!(NonRepetitivePattern::try_new(0, 0.1, 4, 0.0, 1.0, 1.0, 1.5).is_err());
         assert!(NonRepetitivePattern::try_new(10, 0.1, 4, 1.0, 0.0, 1.0, 1.5).is_err());
         assert!(NonRepetitivePattern::try_new(10, 0.1, 4, 0.0, 1.0, f64::NAN, 1.5).is_err());

@@ -1,6 +1,6 @@
 //! Coefficient functions of the SO(3)/SE(3) closed forms, each accurate over
 //! [0, π]: a Taylor series in θ² below [`SERIES_BELOW`], the closed form above
-//! it, where its cancellation error is below 1e-15.
+//! it, where its cancellation error is a few 1e-14 relative at most (c3 at θ = 1 is the worst).
 
 /// θ below which the series are used. Eleven terms leave a truncation error
 /// under 1e-20 there.

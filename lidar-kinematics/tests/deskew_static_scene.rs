@@ -222,6 +222,12 @@ fn bad_input_is_a_typed_error() {
         d.deskew_to_vec(&poses, &angles, &pts, DeskewTarget::BodyAt(f64::NAN)),
         Err(E::NonFinite { .. })
     ));
+    // A BodyAt time needs poses only: outside the angle span but inside the pose span is fine.
+    let early_angles = [AngleSample::new(0.0, 0.0), AngleSample::new(0.06, 0.6)];
+    assert!(
+        d.deskew_to_vec(&poses, &early_angles, &pts, DeskewTarget::BodyAt(0.09))
+            .is_ok()
+    );
     let mut out = [Point3::origin(); 2];
     assert!(matches!(
         d.deskew(&poses, &angles, &pts, w, &mut out),

@@ -674,7 +674,10 @@ mod tests {
         assert!(r.is_err());
         assert!(!m.is_solved());
         assert!(matches!(m.trajectory(), Err(MincoError::NotSolved)));
-        assert!(matches!(Minco::<3, 3>::new(1 << 60), Err(MincoError::InvalidConfig { .. })));
+        assert!(matches!(
+            Minco::<3, 3>::new(1 << 60),
+            Err(MincoError::InvalidConfig { .. })
+        ));
         // Mismatched gradient buffers.
         m.solve(&z, &z, &[[1.0; 3]], &[1.0, 1.0]).unwrap();
         let mut gq = vec![[0.0; 3]; 2];

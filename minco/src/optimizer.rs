@@ -589,7 +589,10 @@ mod tests {
         };
         for joint in [0.0, mu] {
             let (left, right) = (curvature(joint - 1e-4), curvature(joint + 1e-4));
-            assert!((left - right).abs() < 1e-2, "curvature jumps at {joint}: {left} vs {right}");
+            assert!(
+                (left - right).abs() < 1e-2,
+                "curvature jumps at {joint}: {left} vs {right}"
+            );
         }
         // Away from the joints the curvature is what the formula says: 6x/μ² − 6x²/μ³.
         let x = 0.5 * mu;

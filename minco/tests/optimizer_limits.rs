@@ -134,13 +134,22 @@ fn bad_requests_are_typed_errors() {
     ));
     let mut huge = cfg;
     huge.memory = usize::MAX;
-    assert!(matches!(huge.validate(), Err(MincoError::InvalidConfig { .. })));
+    assert!(matches!(
+        huge.validate(),
+        Err(MincoError::InvalidConfig { .. })
+    ));
     // Zero inner points: a single piece still optimises.
     let mut single =
         Optimizer::<3, 3>::new(cfg, rest([0.0; 3]), rest([2.0, 0.0, 0.0]), &[]).unwrap();
     let sol = single.optimize().unwrap();
     assert!(sol.trajectory.max_speed(64) <= 3.0 * 1.02);
     assert_eq!(sol.max_speed, sol.trajectory.max_speed(64));
-    assert!(matches!(sol.trajectory.sample(1e-300), Err(MincoError::InvalidConfig { .. })));
-    assert!(matches!(sol.trajectory.sample(f64::NAN), Err(MincoError::InvalidConfig { .. })));
+    assert!(matches!(
+        sol.trajectory.sample(1e-300),
+        Err(MincoError::InvalidConfig { .. })
+    ));
+    assert!(matches!(
+        sol.trajectory.sample(f64::NAN),
+        Err(MincoError::InvalidConfig { .. })
+    ));
 }
