@@ -20,19 +20,19 @@ fn run() -> Result<String, String> {
                 cfg.candidates = args
                     .next()
                     .and_then(|v| v.parse().ok())
-                    .ok_or("--candidates needs a number")?
+                    .ok_or("--candidates needs a number")?;
             }
             "--trials" => {
                 cfg.max_trials = args
                     .next()
                     .and_then(|v| v.parse().ok())
-                    .ok_or("--trials needs a number")?
+                    .ok_or("--trials needs a number")?;
             }
             "--seed" => {
                 cfg.seed = args
                     .next()
                     .and_then(|v| v.parse().ok())
-                    .ok_or("--seed needs a number")?
+                    .ok_or("--seed needs a number")?;
             }
             "--time-limit-ms" => {
                 let ms: u64 = args
