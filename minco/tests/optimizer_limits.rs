@@ -1,6 +1,6 @@
 //! The optimiser respects v_max and a_max (within 2 %, by dense sampling) and lowers the cost
 //! below the initial guess's, on 200 random paths; bad requests give typed errors.
-#![allow(clippy::unwrap_used)]
+#![allow(clippy::unwrap_used, clippy::print_stdout)]
 
 use minco::{MincoError, Optimizer, OptimizerConfig};
 
