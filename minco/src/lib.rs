@@ -72,4 +72,21 @@ pub(crate) mod test_util {
         let norm = numeric.iter().map(|a| a * a).sum::<f64>().sqrt();
         (err, norm)
     }
+
+    /// Checks the first `split` entries (waypoints) and the rest (durations) separately to
+    /// `1e-6` relative, so a large waypoint gradient cannot hide a wrong duration gradient.
+    pub(crate) fn check_gradient_blocks(
+        numeric: &[f64],
+        analytic: &[f64],
+        split: usize,
+    ) -> Result<(), proptest::test_runner::TestCaseError> {
+        for (what, range) in [("waypoints", 0..split), ("durations", split..numeric.len())] {
+            let (err, norm) = gradient_error(&numeric[range.clone()], &analytic[range]);
+            proptest::prop_assert!(
+                err <= 1e-6 * norm.max(1e-12),
+                "{what}: gradient error {err} vs norm {norm}\nnumeric {numeric:?}\nanalytic {analytic:?}"
+            );
+        }
+        Ok(())
+    }
 }

@@ -567,16 +567,7 @@ mod tests {
             num.push(richardson(&f, 1e-3 * p.t[i]));
             ana.push(gt[i]);
         }
-        // The waypoint block and the duration block are checked separately, so a large ∂J/∂q
-        // cannot hide a wrong dJ/dT.
-        let nq = 3 * p.q.len();
-        for (what, range) in [("waypoints", 0..nq), ("durations", nq..num.len())] {
-            let (err, norm) = crate::test_util::gradient_error(&num[range.clone()], &ana[range]);
-            prop_assert!(
-                err <= 1e-6 * norm.max(1e-12),
-                "{what} gradient error {err} vs norm {norm}\nnum {num:?}\nana {ana:?}"
-            );
-        }
+        crate::test_util::check_gradient_blocks(&num, &ana, 3 * p.q.len())?;
         Ok(())
     }
 

@@ -658,15 +658,7 @@ mod tests {
             let fm = opt.cost_and_gradient(&xm, &mut scratch).unwrap();
             num.push((fp - fm) / (2.0 * h));
         }
-        // Waypoint block and duration block separately.
-        let nq = 3 * inner;
-        for (what, range) in [("waypoints", 0..nq), ("durations", nq..num.len())] {
-            let (err, norm) = crate::test_util::gradient_error(&num[range.clone()], &g[range]);
-            prop_assert!(
-                err <= 1e-6 * norm.max(1e-12),
-                "{what}: error {err} norm {norm}\nnum {num:?}\nana {g:?}"
-            );
-        }
+        crate::test_util::check_gradient_blocks(&num, &g, 3 * inner)?;
         Ok(())
     }
 

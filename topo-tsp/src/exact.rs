@@ -166,14 +166,7 @@ mod tests {
     use proptest::prelude::*;
 
     fn matrix(n: usize, seed: u64) -> CostMatrix {
-        let mut s = seed;
-        CostMatrix::from_fn(n, |_, _| {
-            s = s
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            ((s >> 40) % 100) as f64
-        })
-        .unwrap()
+        crate::test_util::random_matrix(n, seed, 100)
     }
 
     proptest! {

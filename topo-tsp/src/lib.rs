@@ -65,3 +65,21 @@ pub use tsplib::{ProblemKind, TsplibInstance, parse_tsplib};
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
+
+/// Helpers shared by the unit tests.
+#[cfg(test)]
+pub(crate) mod test_util {
+    use crate::CostMatrix;
+
+    /// A seeded random n × n matrix with integer costs in 0..modulus.
+    pub(crate) fn random_matrix(n: usize, seed: u64, modulus: u64) -> CostMatrix {
+        let mut s = seed;
+        CostMatrix::from_fn(n, |_, _| {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((s >> 40) % modulus) as f64
+        })
+        .unwrap()
+    }
+}
