@@ -95,47 +95,71 @@ fn less(a: (bool, f64), b: (bool, f64)) -> bool {
     (a.0, a.1) < (b.0, b.1)
 }
 
-/// Prim's algorithm on nodes 1..N, then the two cheapest edges of node 0.
+/// Prim's algorithm on nodes 1..2n, then the two cheapest edges of node 0.
+///
+/// Every fixed edge (i, n + i) is in every minimum 1-tree, so the spanning tree is computed on
+/// the n "super-nodes" {i, n + i} (i ≥ 1) and {n} (city 0 is the special node), joining two
+/// super-nodes by the cheaper of their two real edges: O(n²) instead of O((2n)²). The tree is
+/// then written back in terms of the 2n nodes, rooted at node n.
 fn one_tree(m: &CostMatrix, pi: &[f64]) -> OneTree {
     let n = m.len();
     let big_n = 2 * n;
-    let mut in_tree = vec![false; big_n];
-    let mut best = vec![(true, f64::INFINITY); big_n];
     let mut parent = vec![usize::MAX; big_n];
     let mut degree = vec![0i64; big_n];
     let mut cost = 0.0;
-    // Root the spanning tree at node n (city 0's twin) — node 0 is the special node.
-    let root = n;
-    best[root] = (false, 0.0);
-    for _ in 1..big_n {
-        // The closest node not yet in the tree (ties by index: deterministic).
+    // The cheapest real edge between super-nodes a and b, as (cost, node in a, node in b).
+    let link = |a: usize, b: usize| -> (f64, usize, usize) {
+        // Twin of a → city b, when a has a twin in the tree part (always) and b is a city pair.
+        let ab = m.cost(a, b) + pi[n + a] + pi[b];
+        if a == 0 {
+            return (ab, n, b);
+        }
+        let ba = m.cost(b, a) + pi[n + b] + pi[a];
+        if ba < ab {
+            (ba, a, n + b)
+        } else {
+            (ab, n + a, b)
+        }
+    };
+    let mut in_tree = vec![false; n];
+    let mut best = vec![(f64::INFINITY, usize::MAX, usize::MAX); n];
+    in_tree[0] = true;
+    for b in 1..n {
+        best[b] = link(0, b);
+    }
+    for _ in 1..n {
+        // The closest super-node not yet in the tree (ties by index: deterministic).
         let mut u = usize::MAX;
-        for v in 1..big_n {
-            if !in_tree[v] && (u == usize::MAX || less(best[v], best[u])) {
+        for v in 1..n {
+            if !in_tree[v] && (u == usize::MAX || best[v].0 < best[u].0) {
                 u = v;
             }
         }
-        if u == usize::MAX || best[u].1.is_infinite() {
+        if u == usize::MAX {
             break;
         }
         in_tree[u] = true;
-        if parent[u] != usize::MAX {
-            cost += best[u].1;
-            degree[u] += 1;
-            degree[parent[u]] += 1;
-        }
-        for v in 1..big_n {
-            if in_tree[v] {
-                continue;
-            }
-            if let Some(e) = edge(m, n, u, v) {
-                let k = key(e, pi[u], pi[v]);
-                if less(k, best[v]) {
-                    best[v] = k;
-                    parent[v] = u;
+        let (c, from, to) = best[u];
+        cost += c;
+        parent[to] = from;
+        // The partner of `to` hangs below it on the fixed edge.
+        let partner = if to < n { to + n } else { to - n };
+        parent[partner] = to;
+        degree[from] += 1;
+        degree[to] += 1;
+        for v in 1..n {
+            if !in_tree[v] {
+                let cand = link(u, v);
+                if cand.0 < best[v].0 {
+                    best[v] = cand;
                 }
             }
         }
+    }
+    // Fixed edges of the pairs.
+    for i in 1..n {
+        degree[i] += 1;
+        degree[n + i] += 1;
     }
     // Special node 0: its fixed edge to twin n and its cheapest other edge.
     let mut second = (usize::MAX, (true, f64::INFINITY));
