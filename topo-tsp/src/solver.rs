@@ -1,11 +1,11 @@
-//! A heuristic ATSP solver: α-nearness candidates, Or-opt and orientation-preserving 3-opt
+//! A heuristic ATSP solver: α-nearness candidates, Or-opt, 2-opt and orientation-preserving 3-opt
 //! local search with don't-look bits, and iterated double-bridge kicks.
 //!
 //! This is the first step toward the LKH-style solver: the candidate sets and the lower bound
 //! come from the Held–Karp machinery of [`crate::held_karp_bound`]; the local search uses
-//! the moves that never reverse a segment (reversals are costly on asymmetric instances):
-//! segment insertion (Or-opt, segments of 1–3 nodes) and the segment swap
-//! a→b…c→d…e→f ⇒ a→d…e→b…c→f. Kicks are double bridges, which also preserve orientation.
+//! segment insertion (Or-opt, segments of 1–3 nodes), the orientation-preserving segment swap
+//! a→b…c→d…e→f ⇒ a→d…e→b…c→f, and 2-opt with reversal, whose asymmetric cost change comes
+//! from prefix sums of the forward and backward arc costs. Kicks are double bridges.
 //! Everything is seeded: the same instance, settings and seed give the same tour.
 
 use crate::bound::{BoundConfig, alpha_candidates, held_karp_bound};
@@ -93,6 +93,10 @@ struct State<'a> {
     m: &'a CostMatrix,
     order: Vec<usize>,
     pos: Vec<usize>,
+    /// Prefix sums over the arcs of `order` (arc k runs from position k to k + 1, cyclic):
+    /// forward costs, and the costs of the same arcs traversed backwards.
+    fwd: Vec<f64>,
+    bwd: Vec<f64>,
 }
 
 impl State<'_> {
@@ -114,10 +118,32 @@ impl State<'_> {
     }
 
     fn set_order(&mut self, order: Vec<usize>) {
+        let n = order.len();
         for (i, &v) in order.iter().enumerate() {
             self.pos[v] = i;
         }
+        self.fwd.resize(n + 1, 0.0);
+        self.bwd.resize(n + 1, 0.0);
+        for k in 0..n {
+            let (u, v) = (order[k], order[(k + 1) % n]);
+            self.fwd[k + 1] = self.fwd[k] + self.m.cost(u, v);
+            self.bwd[k + 1] = self.bwd[k] + self.m.cost(v, u);
+        }
         self.order = order;
+    }
+
+    /// Sums over the arcs from position p up to (not including) position q, cyclic:
+    /// (forward cost, backward cost).
+    fn arc_sums(&self, p: usize, q: usize) -> (f64, f64) {
+        let n = self.n();
+        if p <= q {
+            (self.fwd[q] - self.fwd[p], self.bwd[q] - self.bwd[p])
+        } else {
+            (
+                self.fwd[n] - self.fwd[p] + self.fwd[q],
+                self.bwd[n] - self.bwd[p] + self.bwd[q],
+            )
+        }
     }
 
     /// The tour read from `a`, as a vector of cities.
@@ -171,6 +197,26 @@ impl State<'_> {
                     self.set_order(next);
                     return Some([a, b, cc, d, e, f]);
                 }
+            }
+        }
+        // 2-opt with reversal: a→b … d→e  ⇒  a→d, reversed d…b, b→e. On asymmetric costs the
+        // reversed arcs change cost too; prefix sums give their total in O(1).
+        for &d in &cand[a] {
+            let rd = self.rel(a, d);
+            if rd < 2 {
+                continue;
+            }
+            let e = self.succ(d);
+            if e == a {
+                continue;
+            }
+            let (fw, bw) = self.arc_sums(self.pos[b], self.pos[d]);
+            let gain = c(a, b) + c(d, e) + fw - c(a, d) - c(b, e) - bw;
+            if gain > eps {
+                let mut tour = self.from(a);
+                tour[1..=rd].reverse();
+                self.set_order(tour);
+                return Some([a, b, d, e, a, b]);
             }
         }
         // Or-opt: move the segment that starts at a (1–3 cities) between two other cities.
@@ -303,6 +349,8 @@ pub fn solve(
         m,
         order: Vec::new(),
         pos: vec![0; n],
+        fwd: Vec::new(),
+        bwd: Vec::new(),
     };
     st.set_order(order);
     let mut queue: Vec<usize> = (0..n).rev().collect();
