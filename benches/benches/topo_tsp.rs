@@ -38,6 +38,11 @@ fn bench_open_tours(c: &mut Criterion) {
         g.bench_function(BenchmarkId::new("solve_open", n), |b| {
             b.iter(|| black_box(solve_open(black_box(&m), &cfg, || false).ok()));
         });
+        // The replanning setting: stop after 100 + 5n trials without improvement.
+        let fast = SolverConfig::default().with_stall_trials(100);
+        g.bench_function(BenchmarkId::new("solve_open_stall100", n), |b| {
+            b.iter(|| black_box(solve_open(black_box(&m), &fast, || false).ok()));
+        });
     }
     g.finish();
 }

@@ -24,7 +24,7 @@ use crate::matrix::CostMatrix;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub struct BoundConfig {
-    /// Maximum subgradient iterations. Default 1000.
+    /// Maximum subgradient iterations. Default 300.
     pub max_iterations: usize,
     /// Initial Polyak step factor λ (0, 2]. Default 2.
     pub initial_step: f64,
@@ -37,7 +37,7 @@ pub struct BoundConfig {
 impl Default for BoundConfig {
     fn default() -> Self {
         Self {
-            max_iterations: 1000,
+            max_iterations: 300,
             initial_step: 2.0,
             patience: 20,
             min_step: 1e-6,
