@@ -115,17 +115,23 @@ impl State<'_> {
         self.order.len()
     }
 
+    /// `k` reduced modulo n for 0 ≤ k < 2n, without a division (this is the hot path).
+    #[inline(always)]
+    fn wrap(&self, k: usize) -> usize {
+        if k >= self.n() { k - self.n() } else { k }
+    }
+
     fn succ(&self, v: usize) -> usize {
-        self.order[(self.pos[v] + 1) % self.n()]
+        self.order[self.wrap(self.pos[v] + 1)]
     }
 
     fn pred(&self, v: usize) -> usize {
-        self.order[(self.pos[v] + self.n() - 1) % self.n()]
+        self.order[self.wrap(self.pos[v] + self.n() - 1)]
     }
 
     /// Position of `v` counted from `a` along the tour.
     fn rel(&self, a: usize, v: usize) -> usize {
-        (self.pos[v] + self.n() - self.pos[a]) % self.n()
+        self.wrap(self.pos[v] + self.n() - self.pos[a])
     }
 
     fn set_order(&mut self, order: Vec<usize>) {
@@ -233,9 +239,9 @@ impl State<'_> {
         // Or-opt: move the segment that starts at a (1–3 cities) between two other cities.
         for len in 1..=3usize.min(n.saturating_sub(3)) {
             let first = a;
-            let tour = self.from(first);
-            let last = tour[len - 1];
-            let (prev, next) = (self.pred(first), tour[len]);
+            let at = |k: usize| self.order[self.wrap(self.pos[first] + k)];
+            let (last, next) = (at(len - 1), at(len));
+            let prev = self.pred(first);
             let removed = c(prev, first) + c(last, next) - c(prev, next);
             if removed <= eps {
                 continue;
@@ -249,6 +255,7 @@ impl State<'_> {
                 let gain = removed + c(aa, bb) - c(aa, first) - c(last, bb);
                 if gain > eps {
                     // From first: [seg] next … aa bb … prev  ⇒  next … aa [seg] bb … prev.
+                    let tour = self.from(first);
                     let mut order = Vec::with_capacity(n);
                     order.extend_from_slice(&tour[len..rb]);
                     order.extend_from_slice(&tour[..len]);
