@@ -61,6 +61,17 @@ pub struct ReadmeDoctests;
 /// Helpers shared by the unit tests.
 #[cfg(test)]
 pub(crate) mod test_util {
+    /// A seeded uniform generator on [0, 1) (an LCG: enough for test inputs).
+    pub(crate) fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut rng = seed;
+        move || {
+            rng = rng
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     /// ‖numeric − analytic‖ and ‖numeric‖ of two gradients.
     pub(crate) fn gradient_error(numeric: &[f64], analytic: &[f64]) -> (f64, f64) {
         let err = numeric

@@ -432,13 +432,7 @@ mod tests {
 
     fn problem<const S: usize>(max_pieces: usize) -> impl Strategy<Value = Problem<S>> {
         (1..=max_pieces, any::<u64>()).prop_map(|(m, seed)| {
-            let mut rng = seed;
-            let mut next = move || {
-                rng = rng
-                    .wrapping_mul(6_364_136_223_846_793_005)
-                    .wrapping_add(1_442_695_040_888_963_407);
-                (rng >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut next = crate::test_util::uniform(seed);
             let mut row = |scale: f64| [0.0; 3].map(|_: f64| (next() - 0.5) * scale);
             let head: [[f64; 3]; S] = core::array::from_fn(|_| row(2.0));
             let tail: [[f64; 3]; S] = core::array::from_fn(|_| row(2.0));

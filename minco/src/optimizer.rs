@@ -600,13 +600,7 @@ mod tests {
     }
 
     fn random_path(seed: u64, n: usize) -> Vec<[f64; 3]> {
-        let mut rng = seed;
-        let mut next = move || {
-            rng = rng
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (rng >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::test_util::uniform(seed);
         let mut p = [0.0, 0.0, 1.0];
         (0..n)
             .map(|_| {
