@@ -1,0 +1,545 @@
+//! Incremental frontier cells and their clusters.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+use rustc_hash::{FxHashMap, FxHashSet};
+
+use crate::grid::{Cell, FACES, Grid, NEIGHBOURS_26};
+use crate::map::{CellState, FrameUpdate, VoxelMap};
+use crate::{FrontierError, Result};
+
+/// Settings of frontier clustering. Defaults follow FUEL (clusters split until every cell is
+/// within 2 m of the centre).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrontierConfig {
+    /// Clusters with fewer cells are tracked but ignored by [`Frontiers::clusters`] and the
+    /// viewpoint stage.
+    pub min_cluster_cells: usize,
+    /// Largest distance \[m\] from a cluster's centre to any of its cell centres; larger
+    /// clusters are split in two along their principal axis, recursively.
+    pub max_cluster_radius: f64,
+}
+
+impl Default for FrontierConfig {
+    fn default() -> Self {
+        Self {
+            min_cluster_cells: 8,
+            max_cluster_radius: 2.0,
+        }
+    }
+}
+
+impl FrontierConfig {
+    /// Checks every setting.
+    ///
+    /// # Errors
+    /// [`FrontierError::InvalidConfig`] for a radius that is not positive and finite.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.max_cluster_radius.is_finite() && self.max_cluster_radius > 0.0) {
+            return Err(FrontierError::InvalidConfig {
+                what: "max_cluster_radius",
+                value: self.max_cluster_radius,
+                reason: "must be positive and finite [m]",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Identifies a cluster for as long as it exists; a re-grown cluster gets a new id.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ClusterId(pub u64);
+
+/// A connected set of frontier cells and its shape.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cluster {
+    id: ClusterId,
+    cells: Vec<Cell>,
+    center: Point3<f64>,
+    axes: Matrix3<f64>,
+    variances: Vector3<f64>,
+    normal: Vector3<f64>,
+    min: Point3<f64>,
+    max: Point3<f64>,
+}
+
+impl Cluster {
+    /// The cluster's id.
+    pub fn id(&self) -> ClusterId {
+        self.id
+    }
+
+    /// Its frontier cells, sorted.
+    pub fn cells(&self) -> &[Cell] {
+        &self.cells
+    }
+
+    /// The centre c: the mean of the cell centres \[m\].
+    pub fn center(&self) -> Point3<f64> {
+        self.center
+    }
+
+    /// Principal axes as the columns of a rotation, by decreasing variance.
+    pub fn axes(&self) -> &Matrix3<f64> {
+        &self.axes
+    }
+
+    /// Variances of the cell centres along [`Cluster::axes`] \[m²\], decreasing.
+    pub fn variances(&self) -> Vector3<f64> {
+        self.variances
+    }
+
+    /// The dominant normal n: a unit vector pointing from the unknown side into known free space.
+    ///
+    /// For a planar cluster (at least 3 cells, least variance under a quarter of the middle one)
+    /// it is the least-variance axis (EPIC's PCA normal); otherwise the mean direction from the
+    /// cells' unknown face neighbours to their free ones. Either way it is oriented to agree with
+    /// that mean direction.
+    pub fn normal(&self) -> Vector3<f64> {
+        self.normal
+    }
+
+    /// The intensity score s: the number of frontier cells.
+    pub fn score(&self) -> f64 {
+        // Cell counts are far below 2^53.
+        #[allow(clippy::cast_precision_loss)]
+        let s = self.cells.len() as f64;
+        s
+    }
+
+    /// Lower corner of the bounding box of its cells \[m\].
+    pub fn bbox_min(&self) -> Point3<f64> {
+        self.min
+    }
+
+    /// Upper corner of the bounding box of its cells \[m\].
+    pub fn bbox_max(&self) -> Point3<f64> {
+        self.max
+    }
+
+    /// Largest distance from the centre to a cell centre \[m\].
+    pub fn radius(&self, grid: &Grid) -> f64 {
+        self.cells
+            .iter()
+            .map(|c| (grid.center(*c) - self.center).norm())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// What an update changed, for callers that cache per-cluster work.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct FrontierDelta {
+    /// Clusters that no longer exist.
+    pub removed: Vec<ClusterId>,
+    /// Clusters created, in id order.
+    pub added: Vec<ClusterId>,
+    /// Cells whose frontier status was examined.
+    pub examined: usize,
+}
+
+/// The frontier of a [`VoxelMap`]: known-free cells with an unknown face neighbour, grouped
+/// into clusters, and kept up to date incrementally (FUEL's incremental frontier structure).
+///
+/// Cells outside the map bounds count as neither free nor unknown, so the map's border is no
+/// frontier. Clusters are 26-connected regions of frontier cells, split along their principal
+/// axis until they satisfy [`FrontierConfig::max_cluster_radius`]. An update re-examines only
+/// the changed cells and their face neighbours; clusters that lost a cell, or touch a new
+/// frontier cell, are dissolved and re-grown with the new cells.
+///
+/// # Example
+/// ```
+/// use frontier::{Bounds, FrontierConfig, Frontiers, MapConfig, VoxelMap};
+/// use nalgebra::Point3;
+///
+/// let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(10.0, 10.0, 3.0)).unwrap();
+/// let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
+/// let mut frontiers = Frontiers::new(FrontierConfig::default()).unwrap();
+/// // A fan of rays in the plane z = 1.5 leaves frontiers on all its sides.
+/// let origin = Point3::new(5.0, 5.0, 1.5);
+/// let points: Vec<_> = (0..360)
+///     .map(|i| {
+///         let a = f64::from(i).to_radians();
+///         origin + nalgebra::Vector3::new(3.0 * a.cos(), 3.0 * a.sin(), 0.0)
+///     })
+///     .collect();
+/// let update = map.insert_frame(&origin, &points).unwrap();
+/// frontiers.update(&map, &update);
+/// assert!(frontiers.frontier_len() > 100);
+/// assert!(frontiers.clusters().count() > 1);
+/// ```
+#[derive(Debug, Clone)]
+pub struct Frontiers {
+    config: FrontierConfig,
+    clusters: BTreeMap<ClusterId, Cluster>,
+    /// Every frontier cell (by key) and its cluster.
+    owner: FxHashMap<u64, ClusterId>,
+    next_id: u64,
+}
+
+impl Frontiers {
+    /// An empty frontier.
+    ///
+    /// # Errors
+    /// The first invalid setting (see [`FrontierConfig::validate`]).
+    pub fn new(config: FrontierConfig) -> Result<Self> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            clusters: BTreeMap::new(),
+            owner: FxHashMap::default(),
+            next_id: 0,
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &FrontierConfig {
+        &self.config
+    }
+
+    /// Whether `c` is a frontier cell of `map`: known free with an unknown face neighbour.
+    pub fn is_frontier_in(map: &VoxelMap, c: Cell) -> bool {
+        map.cell_state(c) == CellState::Free
+            && FACES.iter().any(|d| {
+                map.grid()
+                    .offset(c, *d)
+                    .is_some_and(|n| map.cell_state(n) == CellState::Unknown)
+            })
+    }
+
+    /// Whether `c` is currently a tracked frontier cell.
+    pub fn is_frontier(&self, c: Cell) -> bool {
+        self.owner.contains_key(&c.key())
+    }
+
+    /// Number of frontier cells.
+    pub fn frontier_len(&self) -> usize {
+        self.owner.len()
+    }
+
+    /// Every frontier cell, sorted.
+    pub fn frontier_cells(&self) -> Vec<Cell> {
+        let mut v: Vec<Cell> = self.owner.keys().map(|k| Cell::from_key(*k)).collect();
+        v.sort_unstable();
+        v
+    }
+
+    /// The clusters with at least [`FrontierConfig::min_cluster_cells`] cells, by id.
+    pub fn clusters(&self) -> impl Iterator<Item = &Cluster> {
+        let min = self.config.min_cluster_cells;
+        self.clusters.values().filter(move |c| c.cells.len() >= min)
+    }
+
+    /// Every cluster, tiny ones included, by id: they partition the frontier cells.
+    pub fn all_clusters(&self) -> impl Iterator<Item = &Cluster> {
+        self.clusters.values()
+    }
+
+    /// A cluster by id.
+    pub fn cluster(&self, id: ClusterId) -> Option<&Cluster> {
+        self.clusters.get(&id)
+    }
+
+    /// The cluster a frontier cell belongs to.
+    pub fn owner(&self, c: Cell) -> Option<ClusterId> {
+        self.owner.get(&c.key()).copied()
+    }
+
+    /// Recomputes everything from the whole map.
+    pub fn rebuild(&mut self, map: &VoxelMap) -> FrontierDelta {
+        let removed = self.clusters.keys().copied().collect();
+        self.clusters.clear();
+        self.owner.clear();
+        let mut pool = FxHashSet::default();
+        let mut examined = 0;
+        map.for_each_known(|c, s| {
+            examined += 1;
+            if s == CellState::Free && Self::is_frontier_in(map, c) {
+                pool.insert(c.key());
+            }
+        });
+        let added = self.grow(map, pool);
+        FrontierDelta {
+            removed,
+            added,
+            examined,
+        }
+    }
+
+    /// Brings the frontier up to date after `map` absorbed `update` (the value
+    /// [`VoxelMap::insert_frame`] returned). Updates must be passed in order, none skipped;
+    /// after a skipped one, call [`Frontiers::rebuild`].
+    pub fn update(&mut self, map: &VoxelMap, update: &FrameUpdate) -> FrontierDelta {
+        let grid = map.grid();
+        let mut candidates = FxHashSet::default();
+        for ch in &update.changed {
+            candidates.insert(ch.cell.key());
+            for d in &FACES {
+                if let Some(n) = grid.offset(ch.cell, *d) {
+                    candidates.insert(n.key());
+                }
+            }
+        }
+        let mut keys: Vec<u64> = candidates.into_iter().collect();
+        keys.sort_unstable();
+        let examined = keys.len();
+        let mut dirty = FxHashSet::default();
+        let mut pool = FxHashSet::default();
+        for k in keys {
+            let c = Cell::from_key(k);
+            let now = Self::is_frontier_in(map, c);
+            match (self.owner.get(&k).copied(), now) {
+                (Some(id), false) => {
+                    self.owner.remove(&k);
+                    dirty.insert(id);
+                }
+                (None, true) => {
+                    pool.insert(k);
+                    for d in &NEIGHBOURS_26 {
+                        if let Some(id) = grid.offset(c, *d).and_then(|n| self.owner.get(&n.key()))
+                        {
+                            dirty.insert(*id);
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        let mut removed: Vec<ClusterId> = dirty.into_iter().collect();
+        removed.sort_unstable();
+        for id in &removed {
+            if let Some(cl) = self.clusters.remove(id) {
+                for c in cl.cells {
+                    let k = c.key();
+                    if self.owner.remove(&k).is_some() {
+                        pool.insert(k);
+                    }
+                }
+            }
+        }
+        let added = self.grow(map, pool);
+        FrontierDelta {
+            removed,
+            added,
+            examined,
+        }
+    }
+
+    /// Groups the pool into 26-connected regions, splits them, and records the clusters.
+    fn grow(&mut self, map: &VoxelMap, mut pool: FxHashSet<u64>) -> Vec<ClusterId> {
+        let grid = map.grid();
+        let mut seeds: Vec<u64> = pool.iter().copied().collect();
+        seeds.sort_unstable();
+        let mut added = Vec::new();
+        let mut stack = Vec::new();
+        for seed in seeds {
+            if !pool.remove(&seed) {
+                continue;
+            }
+            let mut region = vec![Cell::from_key(seed)];
+            stack.push(Cell::from_key(seed));
+            while let Some(c) = stack.pop() {
+                for d in &NEIGHBOURS_26 {
+                    if let Some(n) = grid.offset(c, *d)
+                        && pool.remove(&n.key())
+                    {
+                        region.push(n);
+                        stack.push(n);
+                    }
+                }
+            }
+            let mut parts = Vec::new();
+            split(grid, region, self.config.max_cluster_radius, &mut parts);
+            for mut cells in parts {
+                cells.sort_unstable();
+                let id = ClusterId(self.next_id);
+                self.next_id += 1;
+                for c in &cells {
+                    self.owner.insert(c.key(), id);
+                }
+                self.clusters.insert(id, shape(map, id, cells));
+                added.push(id);
+            }
+        }
+        added
+    }
+}
+
+/// Mean and covariance of the cell centres.
+fn moments(grid: &Grid, cells: &[Cell]) -> (Point3<f64>, Matrix3<f64>) {
+    // Cell counts are far below 2^53.
+    #[allow(clippy::cast_precision_loss)]
+    let n = cells.len().max(1) as f64;
+    let mean = cells
+        .iter()
+        .fold(Vector3::zeros(), |s, c| s + grid.center(*c).coords)
+        / n;
+    let cov = cells.iter().fold(Matrix3::zeros(), |s, c| {
+        let d = grid.center(*c).coords - mean;
+        s + d * d.transpose()
+    }) / n;
+    (Point3::from(mean), cov)
+}
+
+/// Principal axes (columns) and variances, by decreasing variance.
+fn principal(cov: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>) {
+    let eig = SymmetricEigen::new(*cov);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|a, b| eig.eigenvalues[*b].total_cmp(&eig.eigenvalues[*a]));
+    let axes = Matrix3::from_columns(&order.map(|k| eig.eigenvectors.column(k).into_owned()));
+    let vars = Vector3::from(order.map(|k| eig.eigenvalues[k].max(0.0)));
+    (axes, vars)
+}
+
+/// Splits `cells` along the principal axis until every part has radius ≤ `max_radius`.
+fn split(grid: &Grid, cells: Vec<Cell>, max_radius: f64, out: &mut Vec<Vec<Cell>>) {
+    let (mean, cov) = moments(grid, &cells);
+    let radius = cells
+        .iter()
+        .map(|c| (grid.center(*c) - mean).norm())
+        .fold(0.0, f64::max);
+    if radius <= max_radius || cells.len() < 2 {
+        out.push(cells);
+        return;
+    }
+    let (axes, _) = principal(&cov);
+    let axis = axes.column(0).into_owned();
+    let (a, b): (Vec<Cell>, Vec<Cell>) = cells
+        .iter()
+        .partition(|c| (grid.center(**c) - mean).dot(&axis) >= 0.0);
+    if a.is_empty() || b.is_empty() {
+        out.push(cells);
+        return;
+    }
+    split(grid, a, max_radius, out);
+    split(grid, b, max_radius, out);
+}
+
+/// The shape of a cluster: centre, axes, normal, bounding box.
+fn shape(map: &VoxelMap, id: ClusterId, cells: Vec<Cell>) -> Cluster {
+    let grid = map.grid();
+    let (center, cov) = moments(grid, &cells);
+    let (axes, variances) = principal(&cov);
+    // Mean direction from unknown face neighbours to free ones.
+    let mut g = Vector3::zeros();
+    for c in &cells {
+        for d in &FACES {
+            let dir = Vector3::new(f64::from(d[0]), f64::from(d[1]), f64::from(d[2]));
+            match grid.offset(*c, *d).map(|n| map.cell_state(n)) {
+                Some(CellState::Unknown) => g -= dir,
+                Some(CellState::Free) => g += dir,
+                _ => {}
+            }
+        }
+    }
+    let least = axes.column(2).into_owned();
+    let planar = cells.len() >= 3 && variances[2] <= 0.25 * variances[1];
+    let mut normal = if planar || g.norm() < 1e-9 {
+        least
+    } else {
+        g.normalize()
+    };
+    if normal.dot(&g) < 0.0 {
+        normal = -normal;
+    }
+    let h = Vector3::repeat(0.5 * grid.resolution());
+    let (mut min, mut max) = (center, center);
+    for c in &cells {
+        let p = grid.center(*c);
+        min = min.inf(&(p - h));
+        max = max.sup(&(p + h));
+    }
+    Cluster {
+        id,
+        cells,
+        center,
+        axes,
+        variances,
+        normal,
+        min,
+        max,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Bounds, MapConfig};
+
+    fn fan(map: &mut VoxelMap, o: Point3<f64>, r: f64) -> FrameUpdate {
+        let pts: Vec<_> = (0..720)
+            .map(|i| {
+                let a = f64::from(i).to_radians() * 0.5;
+                o + Vector3::new(r * a.cos(), r * a.sin(), 0.3 * (3.0 * a).sin())
+            })
+            .collect();
+        map.insert_frame(&o, &pts).unwrap()
+    }
+
+    #[test]
+    fn incremental_equals_rebuild_and_clusters_partition() {
+        let b = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(12.0, 12.0, 3.0)).unwrap();
+        let mut map = VoxelMap::new(b, MapConfig::default()).unwrap();
+        let mut inc = Frontiers::new(FrontierConfig::default()).unwrap();
+        for (i, o) in [(4.0, 4.0), (6.0, 5.0), (8.0, 7.0), (5.0, 8.0)]
+            .iter()
+            .enumerate()
+        {
+            let u = fan(
+                &mut map,
+                Point3::new(o.0, o.1, 1.5),
+                2.5 + f64::from(i as u32) * 0.5,
+            );
+            inc.update(&map, &u);
+        }
+        let mut full = Frontiers::new(FrontierConfig::default()).unwrap();
+        full.rebuild(&map);
+        assert_eq!(inc.frontier_cells(), full.frontier_cells());
+        assert!(inc.frontier_len() > 100);
+        let mut seen = FxHashSet::default();
+        for cl in inc.all_clusters() {
+            assert!(cl.radius(map.grid()) <= 2.0 + 1e-9);
+            for c in cl.cells() {
+                assert!(seen.insert(*c), "cell in two clusters");
+                assert_eq!(inc.owner(*c), Some(cl.id()));
+            }
+            assert!((cl.normal().norm() - 1.0).abs() < 1e-9);
+        }
+        assert_eq!(seen.len(), inc.frontier_len());
+    }
+
+    #[test]
+    fn normals_point_into_free_space() {
+        // A slab of free space in x ∈ [0, 3]: its face at x = 3 is a frontier facing +x unknown.
+        let b = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(6.0, 4.0, 2.0)).unwrap();
+        let mut map = VoxelMap::new(b, MapConfig::default()).unwrap();
+        let o = Point3::new(0.1, 2.0, 1.0);
+        let pts: Vec<_> = (0..20)
+            .flat_map(|i| {
+                (0..10).map(move |k| {
+                    Point3::new(30.0, f64::from(i) * 0.2 + 0.1, f64::from(k) * 0.2 + 0.1)
+                })
+            })
+            .collect();
+        let mut f = Frontiers::new(FrontierConfig::default()).unwrap();
+        let cfg = MapConfig {
+            max_range: 3.0,
+            ..Default::default()
+        };
+        let mut short = VoxelMap::new(b, cfg).unwrap();
+        let u = short.insert_frame(&o, &pts).unwrap();
+        f.update(&short, &u);
+        map.insert_frame(&o, &[]).unwrap();
+        let big = f.clusters().max_by_key(|c| c.cells().len()).unwrap();
+        assert!(big.normal().x < -0.5, "{:?}", big.normal());
+    }
+
+    #[test]
+    fn bad_config() {
+        let c = FrontierConfig {
+            max_cluster_radius: 0.0,
+            ..Default::default()
+        };
+        assert!(Frontiers::new(c).is_err());
+    }
+}
