@@ -510,9 +510,14 @@ mod tests {
 
     #[test]
     fn normals_point_into_free_space() {
-        // A slab of free space in x ∈ [0, 3]: its face at x = 3 is a frontier facing +x unknown.
+        // A range-limited sensor at x ≈ 0 clears x ∈ [0, 3]: the frontier at x = 3 has unknown
+        // space on its +x side, so its normal points to −x.
         let b = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(6.0, 4.0, 2.0)).unwrap();
-        let mut map = VoxelMap::new(b, MapConfig::default()).unwrap();
+        let cfg = MapConfig {
+            max_range: 3.0,
+            ..Default::default()
+        };
+        let mut map = VoxelMap::new(b, cfg).unwrap();
         let o = Point3::new(0.1, 2.0, 1.0);
         let pts: Vec<_> = (0..20)
             .flat_map(|i| {
@@ -522,14 +527,8 @@ mod tests {
             })
             .collect();
         let mut f = Frontiers::new(FrontierConfig::default()).unwrap();
-        let cfg = MapConfig {
-            max_range: 3.0,
-            ..Default::default()
-        };
-        let mut short = VoxelMap::new(b, cfg).unwrap();
-        let u = short.insert_frame(&o, &pts).unwrap();
-        f.update(&short, &u);
-        map.insert_frame(&o, &[]).unwrap();
+        let u = map.insert_frame(&o, &pts).unwrap();
+        f.update(&map, &u);
         let big = f.clusters().max_by_key(|c| c.cells().len()).unwrap();
         assert!(big.normal().x < -0.5, "{:?}", big.normal());
     }

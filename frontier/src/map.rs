@@ -14,10 +14,13 @@ const BLOCK_CELLS: usize = 1 << (3 * BLOCK_BITS);
 const WORDS: usize = BLOCK_CELLS / 64;
 const NO_BLOCK: u32 = u32::MAX;
 
-/// Log-odds are stored as `i16` in units of 1/1024: two bytes per cell.
-const SCALE: f64 = 1024.0;
+/// Log-odds are stored as `i8` in units of 1/32: one byte per cell, probabilities up to
+/// 1 − 0.019 (log-odds ±3.97), steps of 0.03 in log-odds.
+const SCALE: f64 = 32.0;
+/// Largest stored magnitude (the value −128 means unknown).
+const MAX_Q: f64 = 127.0;
 /// The stored value of a cell never observed.
-const UNKNOWN: i16 = i16::MIN;
+const UNKNOWN: i8 = i8::MIN;
 
 /// The occupancy state of a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -65,20 +68,25 @@ fn logit(p: f64) -> f64 {
     (p / (1.0 - p)).ln()
 }
 
-fn quantize(l: f64) -> i16 {
-    // Callers pass log-odds of probabilities in (0.001, 0.999): |l| < 7, so |l·1024| < 7200.
+fn quantize(l: f64) -> i8 {
+    // Clamped into the i8 range first; validation rejects values that would be clamped.
     #[allow(clippy::cast_possible_truncation)]
-    let q = (l * SCALE).round() as i16;
+    let q = (l * SCALE).round().clamp(-MAX_Q, MAX_Q) as i8;
     q
+}
+
+/// Probabilities whose log-odds fit the storage: [0.02, 0.98].
+fn storable(p: f64) -> bool {
+    (0.02..=0.98).contains(&p)
 }
 
 impl MapConfig {
     /// Checks every setting.
     ///
     /// # Errors
-    /// [`FrontierError::InvalidConfig`] naming the first setting out of range. Probabilities
-    /// must stay within [0.001, 0.999] and give a non-zero change after quantisation to
-    /// 1/1024 log-odds.
+    /// [`FrontierError::InvalidConfig`] naming the first setting out of range. Log-odds are
+    /// stored in one byte (units of 1/32), so probabilities must lie in [0.02, 0.98] and hit and
+    /// miss must change the log-odds by at least 1/64.
     pub fn validate(&self) -> Result<()> {
         let bad = |what, value, reason| {
             Err(FrontierError::InvalidConfig {
@@ -94,18 +102,18 @@ impl MapConfig {
                 "must be positive and finite [m]",
             );
         }
-        let p = |x: f64| (0.001..=0.999).contains(&x);
+        let p = storable;
         if !(p(self.prob_hit) && self.prob_hit > 0.5 && quantize(logit(self.prob_hit)) > 0) {
-            return bad("prob_hit", self.prob_hit, "must be in (0.5, 0.999]");
+            return bad("prob_hit", self.prob_hit, "must be in (0.504, 0.98]");
         }
         if !(p(self.prob_miss) && self.prob_miss < 0.5 && quantize(logit(self.prob_miss)) < 0) {
-            return bad("prob_miss", self.prob_miss, "must be in [0.001, 0.5)");
+            return bad("prob_miss", self.prob_miss, "must be in [0.02, 0.496)");
         }
         if !(p(self.clamp_min) && self.clamp_min <= self.prob_miss) {
-            return bad("clamp_min", self.clamp_min, "must be in [0.001, prob_miss]");
+            return bad("clamp_min", self.clamp_min, "must be in [0.02, prob_miss]");
         }
         if !(p(self.clamp_max) && self.clamp_max >= self.prob_hit) {
-            return bad("clamp_max", self.clamp_max, "must be in [prob_hit, 0.999]");
+            return bad("clamp_max", self.clamp_max, "must be in [prob_hit, 0.98]");
         }
         if !(self.max_range.is_finite() && self.max_range > 0.0) {
             return bad(
@@ -193,7 +201,7 @@ pub struct FrameUpdate {
 /// A sparse log-odds occupancy map over fixed bounds.
 ///
 /// Storage is a directory of 8 × 8 × 8-cell blocks over the bounds; a block is allocated when
-/// a ray first touches it, and holds one `i16` log-odds value (units of 1/1024) per cell: 2 bytes
+/// a ray first touches it, and holds one `i8` log-odds value (units of 1/32) per cell: 1 byte
 /// per cell, see [`VoxelMap::memory_bytes`]. Rays are inserted by 3-D DDA, each cell updated at
 /// most once per frame (a hit wins over a miss, as in OctoMap).
 ///
@@ -215,23 +223,23 @@ pub struct FrameUpdate {
 pub struct VoxelMap {
     config: MapConfig,
     grid: Grid,
-    hit: i16,
-    miss: i16,
-    lo: i16,
-    hi: i16,
+    hit: i8,
+    miss: i8,
+    lo: i8,
+    hi: i8,
     block_dims: [u32; 3],
     /// Block slot per directory entry, or `NO_BLOCK`.
     directory: Vec<u32>,
     /// `BLOCK_CELLS` log-odds per allocated block.
-    cells: Vec<i16>,
+    cells: Vec<i8>,
     /// Known and occupied cells per allocated block.
     known: Vec<u16>,
     occupied: Vec<u16>,
     /// Per-frame marks: a block's scratch slot is valid while its epoch is the current frame.
     epoch: Vec<u32>,
     scratch_slot: Vec<u32>,
-    /// Hit marks then free marks, `WORDS` words each, per scratch slot.
-    scratch: Vec<[u64; 2 * WORDS]>,
+    /// One bit per cell updated in this frame, per scratch slot.
+    scratch: Vec<[u64; WORDS]>,
     scratch_used: usize,
     frame: u32,
     rays: Vec<(Point3<f64>, bool)>,
@@ -315,7 +323,7 @@ impl VoxelMap {
         })
     }
 
-    fn state_of(v: i16) -> CellState {
+    fn state_of(v: i8) -> CellState {
         if v == UNKNOWN {
             CellState::Unknown
         } else if v >= 0 {
@@ -370,15 +378,15 @@ impl VoxelMap {
         self.known.len()
     }
 
-    /// Bytes the map holds on the heap: cell storage (2 bytes per cell of an allocated block),
+    /// Bytes the map holds on the heap: cell storage (1 byte per cell of an allocated block),
     /// the block directory, per-block counters and the per-frame scratch space.
     pub fn memory_bytes(&self) -> usize {
         use core::mem::size_of;
-        self.cells.capacity() * size_of::<i16>()
+        self.cells.capacity() * size_of::<i8>()
             + self.directory.capacity() * size_of::<u32>()
             + (self.known.capacity() + self.occupied.capacity()) * size_of::<u16>()
             + (self.epoch.capacity() + self.scratch_slot.capacity()) * size_of::<u32>()
-            + self.scratch.capacity() * size_of::<[u64; 2 * WORDS]>()
+            + self.scratch.capacity() * size_of::<[u64; WORDS]>()
             + self.rays.capacity() * size_of::<(Point3<f64>, bool)>()
     }
 
@@ -409,9 +417,9 @@ impl VoxelMap {
         if self.epoch[b] != self.frame {
             self.epoch[b] = self.frame;
             if self.scratch_used == self.scratch.len() {
-                self.scratch.push([0; 2 * WORDS]);
+                self.scratch.push([0; WORDS]);
             } else {
-                self.scratch[self.scratch_used] = [0; 2 * WORDS];
+                self.scratch[self.scratch_used] = [0; WORDS];
             }
             #[allow(clippy::cast_possible_truncation)]
             {
@@ -507,17 +515,34 @@ impl VoxelMap {
             rays.push((end, hit));
         }
         out.rays = rays.len();
+        // The cells of a segment lie in the box of its end cells.
+        let oc = self.grid.clamp_cell(self.grid.grid_coords(origin));
+        let mut bbox = CellBox::point(oc);
+        for (end, _) in &rays {
+            bbox.grow(self.grid.clamp_cell(self.grid.grid_coords(end)));
+        }
+        if !rays.is_empty() {
+            out.bbox = Some(bbox);
+        }
         // Hits first, so a cell hit in this frame is not also cleared by another ray.
         for &(end, hit) in &rays {
             if hit {
                 let c = self.grid.clamp_cell(self.grid.grid_coords(&end));
-                self.mark_and_apply(c, true, &mut out);
+                let (b, s) = self.frame_block(c);
+                self.mark_and_apply(b, s, c, true, &mut out);
             }
         }
+        let grid = self.grid;
         for &(end, _) in &rays {
-            let grid = self.grid;
+            // Look the block up only when the walk enters another one.
+            let mut last = (usize::MAX, 0, 0);
             traverse(&grid, origin, &end, |c| {
-                self.mark_and_apply(c, false, &mut out);
+                let dir = self.directory_index(c);
+                if dir != last.0 {
+                    let (b, s) = self.frame_block(c);
+                    last = (dir, b, s);
+                }
+                self.mark_and_apply(last.1, last.2, c, false, &mut out);
                 true
             });
         }
@@ -525,24 +550,20 @@ impl VoxelMap {
         Ok(out)
     }
 
-    #[inline]
-    fn mark_and_apply(&mut self, c: Cell, hit: bool, out: &mut FrameUpdate) {
-        let (b, s) = self.frame_block(c);
+    /// Updates cell `c` of block `b` (scratch slot `s`) unless this frame updated it already.
+    #[inline(always)]
+    fn mark_and_apply(&mut self, b: usize, s: usize, c: Cell, hit: bool, out: &mut FrameUpdate) {
         let i = Self::index_in_block(c);
         let (w, bit) = (i >> 6, 1u64 << (i & 63));
-        let marks = &mut self.scratch[s];
-        if marks[w] & bit != 0 || marks[WORDS + w] & bit != 0 {
+        let marks = &mut self.scratch[s][w];
+        if *marks & bit != 0 {
             return;
         }
-        marks[if hit { w } else { WORDS + w }] |= bit;
+        *marks |= bit;
         if hit {
             out.hit_cells += 1;
         } else {
             out.free_cells += 1;
-        }
-        match &mut out.bbox {
-            Some(bb) => bb.grow(c),
-            None => out.bbox = Some(CellBox::point(c)),
         }
         if let Some((before, after)) = self.apply(b, i, hit) {
             out.changed.push(CellChange {

@@ -13,6 +13,7 @@ use crate::grid::{Cell, Grid};
 /// to the last cell). The walk takes exactly one step per cell boundary between the two end
 /// cells, so it always ends in the cell of `b`, even when rounding puts a crossing a hair
 /// early or late.
+#[inline]
 pub(crate) fn traverse(
     grid: &Grid,
     a: &Point3<f64>,
@@ -49,23 +50,25 @@ pub(crate) fn traverse(
             }
         }
     }
+    // Axes already in the end cell never step again.
+    for k in 0..3 {
+        if cell[k] == e[k] {
+            t_max[k] = f64::INFINITY;
+        }
+    }
     if !visit(start) {
         return false;
     }
     for _ in 0..remaining {
-        let mut k = usize::MAX;
-        let mut best = f64::INFINITY;
-        for j in 0..3 {
-            if cell[j] != e[j] && (k == usize::MAX || t_max[j] < best) {
-                k = j;
-                best = t_max[j];
-            }
-        }
-        if k == usize::MAX {
-            break;
-        }
+        // Branch-free choice of the axis whose boundary comes first.
+        let k01 = usize::from(t_max[1] < t_max[0]);
+        let k = if t_max[2] < t_max[k01] { 2 } else { k01 };
         cell[k] += step[k];
-        t_max[k] += t_delta[k];
+        t_max[k] = if cell[k] == e[k] {
+            f64::INFINITY
+        } else {
+            t_max[k] + t_delta[k]
+        };
         // Every coordinate stays between the start and end cells, both inside the grid.
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let c = Cell::new(cell[0] as u32, cell[1] as u32, cell[2] as u32);

@@ -60,7 +60,7 @@ fn brute_cells(map: &VoxelMap, a: &Point3<f64>, b: &Point3<f64>) -> Vec<Cell> {
 }
 
 fn q(p: f64) -> i32 {
-    ((p / (1.0 - p)).ln() * 1024.0).round() as i32
+    ((p / (1.0 - p)).ln() * 32.0).round() as i32
 }
 
 /// The reference map: quantised log-odds per observed cell, updated by the documented rules.
@@ -163,7 +163,7 @@ proptest! {
         for (c, l) in &want {
             let s = if *l >= 0 { CellState::Occupied } else { CellState::Free };
             prop_assert_eq!(got.get(c), Some(&s), "cell {:?}", c);
-            let p = 1.0 / (1.0 + (-f64::from(*l) / 1024.0).exp());
+            let p = 1.0 / (1.0 + (-f64::from(*l) / 32.0).exp());
             prop_assert!((map.probability(*c).unwrap() - p).abs() < 1e-12);
         }
     }
