@@ -3,7 +3,7 @@
 use nalgebra::{Point3, Vector3};
 
 use crate::grid::{Bounds, Cell, Grid};
-use crate::raycast::traverse;
+use crate::raycast::{Walk, traverse};
 use crate::{FrontierError, Result};
 
 /// Cells per block edge (blocks hold 8 × 8 × 8 cells).
@@ -235,12 +235,10 @@ pub struct VoxelMap {
     /// Known and occupied cells per allocated block.
     known: Vec<u16>,
     occupied: Vec<u16>,
-    /// Per-frame marks: a block's scratch slot is valid while its epoch is the current frame.
+    /// Per-frame marks, one bit per cell updated in this frame; a block's marks are valid
+    /// while its epoch is the current frame.
     epoch: Vec<u32>,
-    scratch_slot: Vec<u32>,
-    /// One bit per cell updated in this frame, per scratch slot.
-    scratch: Vec<[u64; WORDS]>,
-    scratch_used: usize,
+    marks: Vec<[u64; WORDS]>,
     frame: u32,
     rays: Vec<(Point3<f64>, bool)>,
 }
@@ -277,9 +275,7 @@ impl VoxelMap {
             known: Vec::new(),
             occupied: Vec::new(),
             epoch: Vec::new(),
-            scratch_slot: Vec::new(),
-            scratch: Vec::new(),
-            scratch_used: 0,
+            marks: Vec::new(),
             frame: 0,
             rays: Vec::new(),
         })
@@ -385,8 +381,8 @@ impl VoxelMap {
         self.cells.capacity() * size_of::<i8>()
             + self.directory.capacity() * size_of::<u32>()
             + (self.known.capacity() + self.occupied.capacity()) * size_of::<u16>()
-            + (self.epoch.capacity() + self.scratch_slot.capacity()) * size_of::<u32>()
-            + self.scratch.capacity() * size_of::<[u64; WORDS]>()
+            + self.epoch.capacity() * size_of::<u32>()
+            + self.marks.capacity() * size_of::<[u64; WORDS]>()
             + self.rays.capacity() * size_of::<(Point3<f64>, bool)>()
     }
 
@@ -402,36 +398,27 @@ impl VoxelMap {
         self.known.push(0);
         self.occupied.push(0);
         self.epoch.push(0);
-        self.scratch_slot.push(0);
+        self.marks.push([0; WORDS]);
         b
     }
 
-    /// The block of `c`, allocated if needed, and its scratch slot for this frame.
+    /// The block behind directory entry `dir`, allocated if needed, with its marks valid for
+    /// this frame.
     #[inline]
-    fn frame_block(&mut self, c: Cell) -> (usize, usize) {
-        let dir = self.directory_index(c);
+    fn frame_block(&mut self, dir: usize) -> usize {
         let b = match self.directory[dir] {
             NO_BLOCK => self.allocate(dir),
             b => b as usize,
         };
         if self.epoch[b] != self.frame {
             self.epoch[b] = self.frame;
-            if self.scratch_used == self.scratch.len() {
-                self.scratch.push([0; WORDS]);
-            } else {
-                self.scratch[self.scratch_used] = [0; WORDS];
-            }
-            #[allow(clippy::cast_possible_truncation)]
-            {
-                self.scratch_slot[b] = self.scratch_used as u32;
-            }
-            self.scratch_used += 1;
+            self.marks[b] = [0; WORDS];
         }
-        (b, self.scratch_slot[b] as usize)
+        b
     }
 
     /// Applies one hit or miss to a cell of block `b`; returns the change, if any.
-    #[inline]
+    #[inline(always)]
     fn apply(&mut self, b: usize, index: usize, hit: bool) -> Option<(CellState, CellState)> {
         let v = &mut self.cells[b * BLOCK_CELLS + index];
         let old = *v;
@@ -488,7 +475,6 @@ impl VoxelMap {
             self.epoch.fill(0);
             self.frame = 1;
         }
-        self.scratch_used = 0;
         let mut out = FrameUpdate::default();
         let mut rays = core::mem::take(&mut self.rays);
         rays.clear();
@@ -528,34 +514,55 @@ impl VoxelMap {
         for &(end, hit) in &rays {
             if hit {
                 let c = self.grid.clamp_cell(self.grid.grid_coords(&end));
-                let (b, s) = self.frame_block(c);
-                self.mark_and_apply(b, s, c, true, &mut out);
+                let b = self.frame_block(self.directory_index(c));
+                self.mark_and_apply(b, c, true, &mut out);
             }
         }
+        // Walk rays in the order of their end blocks (Morton order): neighbouring rays share
+        // blocks and cache lines, whatever order the sensor delivered them in.
         let grid = self.grid;
-        for &(end, _) in &rays {
-            // Look the block up only when the walk enters another one.
-            let mut last = (usize::MAX, 0, 0);
-            traverse(&grid, origin, &end, |c| {
-                let dir = self.directory_index(c);
-                if dir != last.0 {
-                    let (b, s) = self.frame_block(c);
-                    last = (dir, b, s);
-                }
-                self.mark_and_apply(last.1, last.2, c, false, &mut out);
-                true
-            });
+        rays.sort_by_cached_key(|(end, _)| morton(grid.clamp_cell(grid.grid_coords(end))));
+        for (end, _) in &rays {
+            self.walk_free(origin, end, &mut out);
         }
         self.rays = rays;
         Ok(out)
     }
 
-    /// Updates cell `c` of block `b` (scratch slot `s`) unless this frame updated it already.
+    /// Updates every cell from `origin` to `end` as free, unless this frame updated it already.
+    fn walk_free(&mut self, origin: &Point3<f64>, end: &Point3<f64>, out: &mut FrameUpdate) {
+        let mut w = Walk::new(&self.grid, origin, end);
+        let [bx, by, _] = self.block_dims.map(|v| v as usize);
+        let stride = [1, bx, bx * by];
+        let mut dir = self.directory_index(w.cell());
+        let mut b = self.frame_block(dir);
+        self.mark_and_apply(b, w.cell(), false, out);
+        // A step leaves the block when the coordinate enters the far side of the next one.
+        let wrap = w.step.map(|s| if s > 0 { 0 } else { BLOCK_MASK });
+        while let Some(k) = w.advance() {
+            let coord = match k {
+                0 => w.x,
+                1 => w.y,
+                _ => w.z,
+            };
+            if coord & BLOCK_MASK == wrap[k] {
+                dir = if w.step[k] > 0 {
+                    dir + stride[k]
+                } else {
+                    dir - stride[k]
+                };
+                b = self.frame_block(dir);
+            }
+            self.mark_and_apply(b, w.cell(), false, out);
+        }
+    }
+
+    /// Updates cell `c` of block `b` unless this frame updated it already.
     #[inline(always)]
-    fn mark_and_apply(&mut self, b: usize, s: usize, c: Cell, hit: bool, out: &mut FrameUpdate) {
+    fn mark_and_apply(&mut self, b: usize, c: Cell, hit: bool, out: &mut FrameUpdate) {
         let i = Self::index_in_block(c);
         let (w, bit) = (i >> 6, 1u64 << (i & 63));
-        let marks = &mut self.scratch[s][w];
+        let marks = &mut self.marks[b][w];
         if *marks & bit != 0 {
             return;
         }
@@ -706,6 +713,21 @@ impl VoxelMap {
             }
         }
     }
+}
+
+/// The Morton (Z-order) code of a cell's block.
+fn morton(c: Cell) -> u64 {
+    fn spread(v: u32) -> u64 {
+        // Interleave the 21 low bits of v with two zero bits each.
+        let mut x = u64::from(v) & 0x1f_ffff;
+        x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+        x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+        x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+        x
+    }
+    spread(c.x >> BLOCK_BITS) | (spread(c.y >> BLOCK_BITS) << 1) | (spread(c.z >> BLOCK_BITS) << 2)
 }
 
 /// Squared distance, in cell units, from grid point `g` to the cube of cell `c`.

@@ -5,14 +5,115 @@ use nalgebra::Point3;
 
 use crate::grid::{Cell, Grid};
 
-/// Visits, in order, every cell the segment from `a` to `b` passes through, from the cell of
-/// `a` to the cell of `b` inclusive; stops early when `visit` returns `false` and then
-/// returns `false`.
+/// A DDA walk over the cells of a segment, one face-adjacent step at a time.
 ///
-/// Both points must be finite and inside the grid's bounds (points on the upper bound belong
-/// to the last cell). The walk takes exactly one step per cell boundary between the two end
-/// cells, so it always ends in the cell of `b`, even when rounding puts a crossing a hair
-/// early or late.
+/// Both end points must be finite and inside the grid's bounds (points on the upper bound
+/// belong to the last cell). The walk takes exactly one step per cell boundary between the two
+/// end cells, so it always ends in the cell of the end point, even when rounding puts a
+/// crossing a hair early or late.
+pub(crate) struct Walk {
+    /// Current cell, end cell, step direction, next crossing and crossing spacing, per axis.
+    pub(crate) x: u32,
+    pub(crate) y: u32,
+    pub(crate) z: u32,
+    end: [u32; 3],
+    pub(crate) step: [i32; 3],
+    tx: f64,
+    ty: f64,
+    tz: f64,
+    dt: [f64; 3],
+    remaining: u64,
+}
+
+impl Walk {
+    /// The walk from `a` to `b`, standing in the cell of `a`.
+    #[inline]
+    pub(crate) fn new(grid: &Grid, a: &Point3<f64>, b: &Point3<f64>) -> Self {
+        let ga = grid.grid_coords(a);
+        let gb = grid.grid_coords(b);
+        let start = grid.clamp_cell(ga);
+        let end = grid.clamp_cell(gb);
+        let (s, e) = ([start.x, start.y, start.z], [end.x, end.y, end.z]);
+        let d = gb - ga;
+        let mut t = [f64::INFINITY; 3];
+        let mut step = [0; 3];
+        let mut dt = [0.0; 3];
+        let mut remaining = 0;
+        for k in 0..3 {
+            remaining += u64::from(s[k].abs_diff(e[k]));
+            if s[k] == e[k] {
+                // An axis already in its end cell never steps.
+                continue;
+            }
+            step[k] = if e[k] > s[k] { 1 } else { -1 };
+            if d[k] == 0.0 {
+                // Only reachable through clamping at the upper bound: take these steps first.
+                t[k] = 0.0;
+            } else {
+                let boundary = if e[k] > s[k] { s[k] + 1 } else { s[k] };
+                t[k] = (f64::from(boundary) - ga[k]) / d[k];
+                dt[k] = 1.0 / d[k].abs();
+            }
+        }
+        Self {
+            x: s[0],
+            y: s[1],
+            z: s[2],
+            end: e,
+            step,
+            tx: t[0],
+            ty: t[1],
+            tz: t[2],
+            dt,
+            remaining,
+        }
+    }
+
+    /// The current cell.
+    #[inline(always)]
+    pub(crate) fn cell(&self) -> Cell {
+        Cell::new(self.x, self.y, self.z)
+    }
+
+    /// Steps into the next cell and returns the axis it moved along, or `None` at the end.
+    #[inline(always)]
+    pub(crate) fn advance(&mut self) -> Option<usize> {
+        if self.remaining == 0 {
+            return None;
+        }
+        self.remaining -= 1;
+        // Scalars per axis rather than arrays indexed by the axis keep the walk in registers.
+        if self.tx <= self.ty && self.tx <= self.tz {
+            self.x = self.x.wrapping_add_signed(self.step[0]);
+            self.tx = if self.x == self.end[0] {
+                f64::INFINITY
+            } else {
+                self.tx + self.dt[0]
+            };
+            Some(0)
+        } else if self.ty <= self.tz {
+            self.y = self.y.wrapping_add_signed(self.step[1]);
+            self.ty = if self.y == self.end[1] {
+                f64::INFINITY
+            } else {
+                self.ty + self.dt[1]
+            };
+            Some(1)
+        } else {
+            self.z = self.z.wrapping_add_signed(self.step[2]);
+            self.tz = if self.z == self.end[2] {
+                f64::INFINITY
+            } else {
+                self.tz + self.dt[2]
+            };
+            Some(2)
+        }
+    }
+}
+
+/// Visits, in order, every cell the segment from `a` to `b` passes through, from the cell of
+/// `a` to the cell of `b` inclusive (see [`Walk`]); stops early when `visit` returns `false`
+/// and then returns `false`.
 #[inline]
 pub(crate) fn traverse(
     grid: &Grid,
@@ -20,59 +121,12 @@ pub(crate) fn traverse(
     b: &Point3<f64>,
     mut visit: impl FnMut(Cell) -> bool,
 ) -> bool {
-    let ga = grid.grid_coords(a);
-    let gb = grid.grid_coords(b);
-    let start = grid.clamp_cell(ga);
-    let end = grid.clamp_cell(gb);
-    let s = [i64::from(start.x), i64::from(start.y), i64::from(start.z)];
-    let e = [i64::from(end.x), i64::from(end.y), i64::from(end.z)];
-    let d = gb - ga;
-    let mut cell = s;
-    let mut step = [0i64; 3];
-    let mut t_max = [f64::INFINITY; 3];
-    let mut t_delta = [f64::INFINITY; 3];
-    let mut remaining = 0u64;
-    for k in 0..3 {
-        step[k] = (e[k] - s[k]).signum();
-        remaining += (e[k] - s[k]).unsigned_abs();
-        if step[k] != 0 {
-            if d[k] == 0.0 {
-                // Only reachable through clamping at the upper bound: take these steps first.
-                t_max[k] = 0.0;
-                t_delta[k] = 0.0;
-            } else {
-                let boundary = if step[k] > 0 { s[k] + 1 } else { s[k] };
-                // i64 → f64 is exact for grid coordinates (< 2^21).
-                #[allow(clippy::cast_precision_loss)]
-                let boundary = boundary as f64;
-                t_max[k] = (boundary - ga[k]) / d[k];
-                t_delta[k] = 1.0 / d[k].abs();
-            }
-        }
-    }
-    // Axes already in the end cell never step again.
-    for k in 0..3 {
-        if cell[k] == e[k] {
-            t_max[k] = f64::INFINITY;
-        }
-    }
-    if !visit(start) {
+    let mut w = Walk::new(grid, a, b);
+    if !visit(w.cell()) {
         return false;
     }
-    for _ in 0..remaining {
-        // Branch-free choice of the axis whose boundary comes first.
-        let k01 = usize::from(t_max[1] < t_max[0]);
-        let k = if t_max[2] < t_max[k01] { 2 } else { k01 };
-        cell[k] += step[k];
-        t_max[k] = if cell[k] == e[k] {
-            f64::INFINITY
-        } else {
-            t_max[k] + t_delta[k]
-        };
-        // Every coordinate stays between the start and end cells, both inside the grid.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let c = Cell::new(cell[0] as u32, cell[1] as u32, cell[2] as u32);
-        if !visit(c) {
+    while w.advance().is_some() {
+        if !visit(w.cell()) {
             return false;
         }
     }
