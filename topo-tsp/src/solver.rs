@@ -27,14 +27,21 @@ pub struct SolverConfig {
     /// Candidate successors per city, by α-nearness. Default 10: free arcs into the start of
     /// an open tour and duplicated nodes create many ties, which 5 candidates do not cover.
     pub candidates: usize,
-    /// Kick-and-improve trials after the first local optimum. Default 2000.
+    /// Kick-and-improve trials after the first local optimum. Default 0: automatic,
+    /// `trials_per_city` × n (LKH runs n trials), at least 30; instances of up to 12 cities
+    /// get 300 cheap random restarts.
     pub max_trials: usize,
+    /// Trials per city when `max_trials` is 0. Default 1.
+    pub trials_per_city: usize,
     /// Stop after this many trials in a row without improvement, plus 5 per city. Default
     /// `usize::MAX` (no such stop). Replanning loops that need a fast answer set it (e.g. 100):
     /// on TSPLIB it trades a few optima for a several-fold speed-up.
     pub stall_trials: usize,
     /// Seed of the kicks. Default 1.
     pub seed: u64,
+    /// Sequential 3-opt steps per chain of the variable-depth search (0 turns the chain off,
+    /// leaving 2-opt and Or-opt). Default 3.
+    pub max_depth: usize,
     /// Settings of the lower bound that also yields the candidates.
     pub bound: BoundConfig,
 }
@@ -43,9 +50,11 @@ impl Default for SolverConfig {
     fn default() -> Self {
         Self {
             candidates: 10,
-            max_trials: 2000,
+            max_trials: 0,
+            trials_per_city: 1,
             stall_trials: usize::MAX,
             seed: 1,
+            max_depth: 3,
             bound: BoundConfig::default(),
         }
     }
@@ -61,6 +70,12 @@ impl SolverConfig {
     /// Sets the trial budget.
     pub fn with_max_trials(mut self, trials: usize) -> Self {
         self.max_trials = trials;
+        self
+    }
+
+    /// Sets the automatic trial budget per city (used when `max_trials` is 0).
+    pub fn with_trials_per_city(mut self, trials: usize) -> Self {
+        self.trials_per_city = trials;
         self
     }
 
@@ -173,49 +188,20 @@ impl State<'_> {
         self.m.closed_length(&self.order)
     }
 
-    /// Tries improving moves that start at city `a`; applies the first one found.
-    /// Returns the cities whose neighbourhoods changed.
+    /// Tries improving moves that start at city `a`; applies the first one found and pushes
+    /// the cities whose arcs changed onto `touched`.
     fn improve_at(
         &mut self,
         a: usize,
         cand: &[Vec<usize>],
         pred_cand: &[Vec<usize>],
-    ) -> Option<[usize; 6]> {
+        lk: &mut Chain,
+        touched: &mut Vec<usize>,
+    ) -> bool {
         let n = self.n();
         let c = |i: usize, j: usize| self.m.cost(i, j);
         let eps = 1e-9;
-        // Segment swap: a→b … c→d … e→f  ⇒  a→d … e→b … c→f.
         let b = self.succ(a);
-        for &d in &cand[a] {
-            let rd = self.rel(a, d);
-            if rd < 2 {
-                continue;
-            }
-            let cc = self.pred(d);
-            let g1 = c(a, b) + c(cc, d) - c(a, d);
-            if g1 <= eps {
-                continue;
-            }
-            for &e in &pred_cand[b] {
-                let re = self.rel(a, e);
-                if re < rd {
-                    continue;
-                }
-                let f = self.succ(e);
-                let gain = g1 + c(e, f) - c(e, b) - c(cc, f);
-                if gain > eps {
-                    // New order from a: a, [d..e], [b..c], f, …
-                    let tour = self.from(a);
-                    let mut next = Vec::with_capacity(n);
-                    next.push(a);
-                    next.extend_from_slice(&tour[rd..=re]);
-                    next.extend_from_slice(&tour[1..rd]);
-                    next.extend_from_slice(&tour[re + 1..]);
-                    self.set_order(next);
-                    return Some([a, b, cc, d, e, f]);
-                }
-            }
-        }
         // 2-opt with reversal: a→b … d→e  ⇒  a→d, reversed d…b, b→e. On asymmetric costs the
         // reversed arcs change cost too; prefix sums give their total in O(1).
         for &d in &cand[a] {
@@ -233,7 +219,8 @@ impl State<'_> {
                 let mut tour = self.from(a);
                 tour[1..=rd].reverse();
                 self.set_order(tour);
-                return Some([a, b, d, e, a, b]);
+                touched.extend([a, b, d, e]);
+                return true;
             }
         }
         // Or-opt: move the segment that starts at a (1–3 cities) between two other cities.
@@ -261,11 +248,16 @@ impl State<'_> {
                     order.extend_from_slice(&tour[..len]);
                     order.extend_from_slice(&tour[rb..]);
                     self.set_order(order);
-                    return Some([prev, first, last, next, aa, bb]);
+                    touched.extend([prev, first, last, next, aa, bb]);
+                    return true;
                 }
             }
         }
-        None
+        // Sequential 3-opt steps chained to a variable depth.
+        if lk.search(self, a, cand, pred_cand, touched) {
+            return true;
+        }
+        false
     }
 
     /// Local search with don't-look bits until no candidate move improves.
@@ -274,16 +266,19 @@ impl State<'_> {
         cand: &[Vec<usize>],
         pred_cand: &[Vec<usize>],
         queue: &mut Vec<usize>,
+        lk: &mut Chain,
     ) {
         let n = self.n();
         let mut active = vec![false; n];
         for &v in queue.iter() {
             active[v] = true;
         }
+        let mut touched = Vec::new();
         while let Some(a) = queue.pop() {
             active[a] = false;
-            if let Some(touched) = self.improve_at(a, cand, pred_cand) {
-                for v in touched {
+            touched.clear();
+            if self.improve_at(a, cand, pred_cand, lk, &mut touched) {
+                for &v in &touched {
                     if !active[v] {
                         active[v] = true;
                         queue.push(v);
@@ -292,6 +287,265 @@ impl State<'_> {
             }
         }
     }
+}
+
+/// Up to this many cities, trials restart from random tours instead of kicking the best.
+const RESTART_MAX: usize = 12;
+
+/// The automatic trial budget of instances of up to `RESTART_MAX` cities (cheap restarts).
+const TINY_TRIALS: usize = 300;
+
+/// The smallest automatic trial budget (tiny instances need more trials than cities).
+const MIN_AUTO_TRIALS: usize = 30;
+
+/// First-level continuations of a chain that are followed deeper (the best by partial gain).
+const FIRST_BREADTH: usize = 3;
+/// Candidates tried at the deeper levels of a chain.
+const DEEP_BREADTH: usize = 5;
+
+/// Candidates tried for the arcs that close or continue a step.
+const INNER_BREADTH: usize = 5;
+
+/// A move of the chain: position `j` of the city d whose incoming arc is replaced, position
+/// `k` of the city f that the freed predecessor of d now enters (see [`Chain::search`]).
+#[derive(Clone, Copy)]
+struct Step {
+    j: usize,
+    k: usize,
+}
+
+/// Variable-depth search over sequential 3-opt steps on a Hamiltonian path, the asymmetric
+/// counterpart of Lin–Kernighan (Kanellakis–Papadimitriou 1980; Helsgaun's LKH builds its
+/// sequential moves the same way on the 2n-node transform, with 5-opt basic steps).
+///
+/// Removing a→b leaves the path b … a. A step from the path's end `t` adds t→d (d a candidate
+/// of t), removes c→d (c the predecessor of d), which splits off the cycle d … t; it then
+/// breaks the cycle at e→f and adds c→f, giving the path b … c f … t d … e. The step is kept
+/// only while the partial gain stays positive; after each step the closing arc e→b is tried.
+struct Chain {
+    path: Vec<usize>,
+    at: Vec<usize>,
+    added: Vec<(usize, usize)>,
+    steps: Vec<Step>,
+    max_depth: usize,
+}
+
+impl Chain {
+    fn new(n: usize, max_depth: usize) -> Self {
+        Self {
+            path: Vec::with_capacity(n),
+            at: vec![0; n],
+            added: Vec::new(),
+            steps: Vec::new(),
+            max_depth,
+        }
+    }
+
+    /// Applies a step: path[j..] rotated left by k − j, i.e. b … c | f … t | d … e.
+    fn apply(&mut self, s: Step) {
+        self.path[s.j..].rotate_left(s.k - s.j);
+        for (i, &v) in self.path.iter().enumerate().skip(s.j) {
+            self.at[v] = i;
+        }
+        self.steps.push(s);
+    }
+
+    fn undo(&mut self) {
+        if let Some(s) = self.steps.pop() {
+            self.path[s.j..].rotate_right(s.k - s.j);
+            for (i, &v) in self.path.iter().enumerate().skip(s.j) {
+                self.at[v] = i;
+            }
+        }
+    }
+
+    /// Looks for an improving chain that starts by removing a→succ(a); on success the new tour
+    /// is written to `st` and the cities of changed arcs are pushed onto `touched`.
+    fn search(
+        &mut self,
+        st: &mut State<'_>,
+        a: usize,
+        cand: &[Vec<usize>],
+        pred_cand: &[Vec<usize>],
+        touched: &mut Vec<usize>,
+    ) -> bool {
+        let n = st.n();
+        if n < 4 || self.max_depth == 0 {
+            return false;
+        }
+        let m = st.m;
+        let c = |i: usize, j: usize| m.cost(i, j);
+        self.path.clear();
+        let pb = st.pos[a] + 1;
+        for k in 0..n {
+            let v = st.order[st.wrap(pb + k)];
+            self.at[v] = k;
+            self.path.push(v);
+        }
+        self.steps.clear();
+        let b = self.path[0];
+        let g0 = c(a, b);
+        // First level: every candidate d of a; the best continuations are followed deeper.
+        let mut go: Vec<(Step, f64, usize)> = Vec::new();
+        self.added.clear();
+        for &d in &cand[a] {
+            let j = self.at[d];
+            if j == 0 || j >= n - 1 {
+                continue;
+            }
+            match self.best_step(m, a, d, g0, b, cand, pred_cand) {
+                Next::Close(s) => {
+                    self.apply(s);
+                    self.commit(st, touched);
+                    return true;
+                }
+                Next::Go(s, g) => go.push((s, g, d)),
+                Next::None => {}
+            }
+        }
+        if self.max_depth < 2 {
+            return false;
+        }
+        go.sort_by(|x, y| y.1.total_cmp(&x.1));
+        for &(s, g, d) in go.iter().take(FIRST_BREADTH) {
+            let (cc, f) = (self.path[s.j - 1], self.path[s.k]);
+            self.added.clear();
+            self.added.push((a, d));
+            self.added.push((cc, f));
+            self.apply(s);
+            if self.deepen(m, g, b, cand, pred_cand) {
+                self.commit(st, touched);
+                return true;
+            }
+            self.undo();
+        }
+        false
+    }
+
+    /// Greedy continuation from the current path end, up to the depth limit.
+    fn deepen(
+        &mut self,
+        m: &CostMatrix,
+        mut g: f64,
+        b: usize,
+        cand: &[Vec<usize>],
+        pred_cand: &[Vec<usize>],
+    ) -> bool {
+        let n = self.path.len();
+        let base = self.steps.len();
+        while self.steps.len() < self.max_depth {
+            let t = self.path[n - 1];
+            let mut best: Option<(Step, f64, usize)> = None;
+            for &d in cand[t].iter().take(DEEP_BREADTH) {
+                let j = self.at[d];
+                if j == 0 || j >= n - 1 {
+                    continue;
+                }
+                match self.best_step(m, t, d, g, b, cand, pred_cand) {
+                    Next::Close(s) => {
+                        self.apply(s);
+                        return true;
+                    }
+                    Next::Go(s, g2) if best.is_none_or(|x| g2 > x.1) => best = Some((s, g2, d)),
+                    _ => {}
+                }
+            }
+            let Some((s, g2, d)) = best else { break };
+            let (cc, f) = (self.path[s.j - 1], self.path[s.k]);
+            self.added.push((t, d));
+            self.added.push((cc, f));
+            self.apply(s);
+            g = g2;
+        }
+        while self.steps.len() > base {
+            self.undo();
+        }
+        false
+    }
+
+    /// For the arc t→d added at the path end with partial gain `g` before it: a closing step
+    /// with positive total gain, or the continuation with the best positive partial gain.
+    #[allow(clippy::too_many_arguments)]
+    fn best_step(
+        &self,
+        m: &CostMatrix,
+        t: usize,
+        d: usize,
+        g: f64,
+        b: usize,
+        cand: &[Vec<usize>],
+        pred_cand: &[Vec<usize>],
+    ) -> Next {
+        let c = |i: usize, j: usize| m.cost(i, j);
+        let eps = 1e-9;
+        let n = self.path.len();
+        let j = self.at[d];
+        let cc = self.path[j - 1];
+        if self.added.contains(&(cc, d)) {
+            return Next::None;
+        }
+        let g1 = g - c(t, d) + c(cc, d);
+        if g1 <= eps {
+            return Next::None;
+        }
+        // Closing arcs e→b among the candidates: e in the cycle d … t, before its end.
+        for &e in pred_cand[b].iter().take(INNER_BREADTH) {
+            let ke = self.at[e];
+            if ke < j || ke >= n - 1 {
+                continue;
+            }
+            let f = self.path[ke + 1];
+            if self.added.contains(&(e, f)) {
+                continue;
+            }
+            if g1 - c(cc, f) + c(e, f) - c(e, b) > eps {
+                return Next::Close(Step { j, k: ke + 1 });
+            }
+        }
+        // Arcs c→f among the candidates: f in the cycle after d.
+        let mut best: Option<(Step, f64)> = None;
+        for &f in cand[cc].iter().take(INNER_BREADTH) {
+            let k = self.at[f];
+            if k <= j {
+                continue;
+            }
+            let e = self.path[k - 1];
+            if self.added.contains(&(e, f)) {
+                continue;
+            }
+            let g2 = g1 - c(cc, f) + c(e, f);
+            if g2 - c(e, b) > eps {
+                return Next::Close(Step { j, k });
+            }
+            if g2 > eps && best.is_none_or(|x| g2 > x.1) {
+                best = Some((Step { j, k }, g2));
+            }
+        }
+        match best {
+            Some((s, g2)) => Next::Go(s, g2),
+            None => Next::None,
+        }
+    }
+
+    /// Writes the closed path to the tour and reports the cities of changed arcs.
+    fn commit(&self, st: &mut State<'_>, touched: &mut Vec<usize>) {
+        let n = self.path.len();
+        for (i, &v) in self.path.iter().enumerate() {
+            let next = self.path[if i + 1 == n { 0 } else { i + 1 }];
+            let old = st.succ(v);
+            if old != next {
+                touched.extend([v, next, old]);
+            }
+        }
+        st.set_order(self.path.clone());
+    }
+}
+
+/// The outcome of [`Chain::best_step`].
+enum Next {
+    None,
+    Close(Step),
+    Go(Step, f64),
 }
 
 /// Solves the closed ATSP on `m` heuristically; `should_stop` is polled between trials (pass
@@ -371,8 +625,9 @@ pub fn solve(
         bwd: Vec::new(),
     };
     st.set_order(order);
+    let mut lk = Chain::new(n, cfg.max_depth);
     let mut queue: Vec<usize> = (0..n).rev().collect();
-    st.local_search(&cand, &pred_cand, &mut queue);
+    st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
     let mut best = st.order.clone();
     let mut best_len = st.length();
     let mut rng = Rng(cfg.seed);
@@ -380,9 +635,38 @@ pub fn solve(
     let optimal = |len: f64| len <= bound.lower_bound + 1e-9 * len.abs().max(1.0);
     let stall_limit = cfg.stall_trials.saturating_add(5 * n);
     let mut stall = 0;
-    while trials < cfg.max_trials && stall < stall_limit && !optimal(best_len) && !should_stop() {
+    let max_trials = if cfg.max_trials == 0 {
+        let floor = if n <= RESTART_MAX {
+            TINY_TRIALS
+        } else {
+            MIN_AUTO_TRIALS
+        };
+        cfg.trials_per_city.saturating_mul(n).max(floor)
+    } else {
+        cfg.max_trials
+    };
+    while trials < max_trials && stall < stall_limit && !optimal(best_len) && !should_stop() {
         trials += 1;
         stall += 1;
+        if n <= RESTART_MAX {
+            // Tiny instances: a random restart explores more than a kick among so few arcs.
+            let mut order = best.clone();
+            for i in (2..n).rev() {
+                order.swap(i, 1 + rng.below(i));
+            }
+            st.set_order(order);
+            let mut queue: Vec<usize> = (0..n).collect();
+            st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
+            let len = st.length();
+            if len < best_len - 1e-9 * best_len.abs().max(1.0) {
+                stall = 0;
+            }
+            if len <= best_len {
+                best_len = len;
+                best.clone_from(&st.order);
+            }
+            continue;
+        }
         // Double bridge on the best tour: A B C D ⇒ A C B D.
         let mut cuts = [
             1 + rng.below(n - 1),
@@ -408,7 +692,7 @@ pub fn solve(
             best[r - 1],
             best[r % n],
         ];
-        st.local_search(&cand, &pred_cand, &mut queue);
+        st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
         let len = st.length();
         if len < best_len - 1e-9 * best_len.abs().max(1.0) {
             stall = 0;
