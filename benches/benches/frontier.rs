@@ -134,10 +134,14 @@ fn bench_insert(c: &mut Criterion) {
 }
 
 /// The office explored along the corridor: (map, frontiers) after `poses` frames.
-fn office_state(poses: &[Point3<f64>]) -> (Office, VoxelMap, Frontiers) {
+fn office_state(poses: &[Point3<f64>], range: f64) -> (Office, VoxelMap, Frontiers) {
     let office = Office::new();
     let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(40.0, 30.0, 3.0)).unwrap();
-    let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
+    let cfg = MapConfig {
+        max_range: range,
+        ..Default::default()
+    };
+    let mut map = VoxelMap::new(bounds, cfg).unwrap();
     let mut f = Frontiers::new(FrontierConfig::default()).unwrap();
     for o in poses {
         let u = map.insert_frame(o, &office.frame(o, 20_000, 20.0)).unwrap();
@@ -150,15 +154,19 @@ fn bench_frontiers(c: &mut Criterion) {
     let path: Vec<Point3<f64>> = (0..6)
         .map(|k| Point3::new(4.0 + 1.0 * f64::from(k), 15.0, 1.5))
         .collect();
-    let (office, mut m2, f) = office_state(&path[..5]);
+    let (office, mut m2, f) = office_state(&path[..5], 20.0);
     let next = path[5];
     let frame = office.frame(&next, 20_000, 20.0);
     let u = m2.insert_frame(&next, &frame).unwrap();
+    let delta = f.clone().update(&m2, &u);
     eprintln!(
-        "frontier update: {} changed cells, {} frontier cells, {} clusters before",
+        "frontier update: {} changed cells, {} frontier cells, {} clusters before; {} examined, {} clusters removed, {} added",
         u.changed.len(),
         f.frontier_len(),
-        f.all_clusters().count()
+        f.all_clusters().count(),
+        delta.examined,
+        delta.removed.len(),
+        delta.added.len()
     );
     c.bench_function("frontier_update_after_20k_frame", |b| {
         b.iter_batched(
@@ -177,8 +185,12 @@ fn bench_frontiers(c: &mut Criterion) {
 }
 
 fn bench_viewpoints(c: &mut Criterion) {
-    let path = [Point3::new(4.0, 15.0, 1.5), Point3::new(20.0, 15.0, 1.5)];
-    let (_, map, f) = office_state(&path);
+    let range: f64 = std::env::var("FRONTIER_BENCH_RANGE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(8.0);
+    let path = [Point3::new(4.0, 15.0, 1.5), Point3::new(12.0, 15.0, 1.5)];
+    let (_, map, f) = office_state(&path, range);
     let cfg = ViewpointConfig::default();
     let plan = plan_targets(&map, &f, &path[1], &Omnidirectional, |_| true, &cfg).unwrap();
     eprintln!(

@@ -600,29 +600,46 @@ impl VoxelMap {
         unknown_occludes: bool,
     ) -> bool {
         let to = self.grid.center(target);
-        let start = self.grid.cell_of(from);
-        // Consecutive cells mostly share a block: look the block up only when it changes.
-        let mut last_dir = usize::MAX;
-        let mut base = None;
-        !traverse(&self.grid, from, &to, |c| {
-            if c == target || Some(c) == start {
-                return true;
-            }
-            let dir = self.directory_index(c);
-            if dir != last_dir {
-                last_dir = dir;
-                base = match self.directory[dir] {
-                    NO_BLOCK => None,
-                    b => Some(b as usize * BLOCK_CELLS),
+        let mut w = Walk::new(&self.grid, from, &to);
+        let [bx, by, _] = self.block_dims.map(|v| v as usize);
+        let stride = [1, bx, bx * by];
+        let mut dir = self.directory_index(w.cell());
+        let block = |dir: usize| match self.directory[dir] {
+            NO_BLOCK => None,
+            b => Some(b as usize * BLOCK_CELLS),
+        };
+        let mut base = block(dir);
+        let wrap = w.step.map(|s| if s > 0 { 0 } else { BLOCK_MASK });
+        // The first cell (the viewpoint's) is not tested; the last one is the target.
+        while let Some(k) = w.advance() {
+            let coord = match k {
+                0 => w.x,
+                1 => w.y,
+                _ => w.z,
+            };
+            if coord & BLOCK_MASK == wrap[k] {
+                dir = if w.step[k] > 0 {
+                    dir + stride[k]
+                } else {
+                    dir - stride[k]
                 };
+                base = block(dir);
+            }
+            let c = w.cell();
+            if c == target {
+                break;
             }
             let v = base.map_or(UNKNOWN, |b| self.cells[b + Self::index_in_block(c)]);
-            if v == UNKNOWN {
-                !unknown_occludes
+            let blocked = if v == UNKNOWN {
+                unknown_occludes
             } else {
-                v < 0
+                v >= 0
+            };
+            if blocked {
+                return true;
             }
-        })
+        }
+        false
     }
 
     /// Distance from `p` to the nearest occupied cell (to the closest point of its cube) \[m\],
@@ -631,23 +648,38 @@ impl VoxelMap {
     ///
     /// Blocks without occupied cells are skipped whole, so open space is cheap.
     pub fn clearance(&self, p: &Point3<f64>, cap: f64) -> f64 {
-        let Some(pc) = self.grid.cell_of(p) else {
-            return 0.0;
-        };
-        if cap.is_nan() || cap <= 0.0 {
+        self.nearest_occupied(p, cap, false)
+    }
+
+    /// Whether no occupied cell lies within `distance` of `p` \[m\] (the clearance is at least
+    /// `distance`); `false` outside the bounds or for a non-finite point. Stops at the first
+    /// occupied cell that is too close, so it is cheaper than [`VoxelMap::clearance`].
+    pub fn is_clear(&self, p: &Point3<f64>, distance: f64) -> bool {
+        if distance.is_nan() || distance <= 0.0 {
+            return self.grid.cell_of(p).is_some();
+        }
+        self.nearest_occupied(p, distance, true) >= distance
+    }
+
+    /// The clearance capped at `cap`; with `first`, returns as soon as one occupied cell is
+    /// closer than `cap`.
+    fn nearest_occupied(&self, p: &Point3<f64>, cap: f64, first: bool) -> f64 {
+        if self.grid.cell_of(p).is_none() || cap.is_nan() || cap <= 0.0 {
             return 0.0;
         }
         let res = self.grid.resolution();
-        let reach = (cap / res)
-            .ceil()
-            .min(f64::from(crate::grid::MAX_CELLS_PER_AXIS));
-        // reach is a non-negative integer ≤ 2^20.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let reach = reach as u32 + 1;
-        let dims = self.grid.dims();
-        let lo = [pc.x, pc.y, pc.z].map(|v| v.saturating_sub(reach));
-        let hi = [(pc.x, 0), (pc.y, 1), (pc.z, 2)].map(|(v, k)| (v + reach).min(dims[k] - 1));
         let g = self.grid.grid_coords(p);
+        let dims = self.grid.dims();
+        // Only cells whose cube comes within `cap` of p: floor((p ± cap) / res), clamped.
+        let r = cap / res;
+        let span = |k: usize, v: f64| {
+            // Clamped into the grid, so the cast is exact.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let c = v.floor().clamp(0.0, f64::from(dims[k] - 1)) as u32;
+            c
+        };
+        let lo = [0, 1, 2].map(|k| span(k, g[k] - r));
+        let hi = [0, 1, 2].map(|k| span(k, g[k] + r));
         let mut best2 = cap * cap;
         for bz in lo[2] >> BLOCK_BITS..=hi[2] >> BLOCK_BITS {
             for by in lo[1] >> BLOCK_BITS..=hi[1] >> BLOCK_BITS {
@@ -673,6 +705,9 @@ impl VoxelMap {
                                 }
                                 let d = box_distance2(&g, c) * res * res;
                                 best2 = best2.min(d);
+                                if first && best2 < cap * cap {
+                                    return best2.sqrt();
+                                }
                             }
                         }
                     }
@@ -860,6 +895,39 @@ mod tests {
         let empty = m.insert_frame(&o, &[]).unwrap();
         assert_eq!(empty.bbox, None);
         assert!(empty.changed.is_empty());
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        #[test]
+        fn clearance_equals_brute_force(
+            hits in proptest::collection::vec((0.5f64..7.5, 0.5f64..5.5, 0.2f64..2.8), 1..30),
+            q in (0.0f64..8.0, 0.0f64..6.0, 0.0f64..3.0),
+            cap in 0.05f64..2.0,
+        ) {
+            let mut m = map();
+            let o = Point3::new(4.0, 3.0, 1.5);
+            let pts: Vec<_> = hits.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect();
+            m.insert_frame(&o, &pts).unwrap();
+            let p = Point3::new(q.0, q.1, q.2);
+            let g = m.grid().grid_coords(&p);
+            let mut truth = f64::INFINITY;
+            m.for_each_known(|c, s| {
+                if s == CellState::Occupied {
+                    truth = truth.min(box_distance2(&g, c).sqrt() * m.grid().resolution());
+                }
+            });
+            let want = truth.min(cap);
+            let got = m.clearance(&p, cap);
+            proptest::prop_assert!((got - want).abs() < 1e-9, "{} vs {}", got, want);
+            // Exactly at the clearance the answer is up to rounding: test just either side.
+            for d in [0.5 * cap, cap, truth * (1.0 - 1e-9), truth * (1.0 + 1e-9)] {
+                if d.is_finite() && (d - truth).abs() > 1e-12 {
+                    proptest::prop_assert_eq!(m.is_clear(&p, d), truth >= d);
+                }
+            }
+        }
     }
 
     #[test]

@@ -72,7 +72,7 @@ pub struct ViewpointConfig {
     /// r0 of (5): the least share of a cluster's cells a viewpoint must see; default 0.5.
     pub min_visibility: f64,
     /// Cells per cluster over which r(v) is evaluated: at most this many, evenly spaced in the
-    /// cluster's sorted cell list (0: every cell). Default 48, as FUEL also evaluates
+    /// cluster's sorted cell list (0: every cell). Default 32, as FUEL also evaluates
     /// visibility on a down-sampled cluster.
     pub visibility_samples: usize,
     /// Whether unknown cells block the view (conservative) or only occupied ones do
@@ -92,7 +92,7 @@ impl Default for ViewpointConfig {
             azimuths: 10,
             safety_distance: 0.5,
             sensor_range: 5.0,
-            visibility_samples: 48,
+            visibility_samples: 32,
             min_visibility: 0.5,
             unknown_occludes: false,
             alpha: 1.0,
@@ -267,10 +267,7 @@ pub fn viewpoint_valid(
     config: &ViewpointConfig,
     supported: &impl Fn(&Point3<f64>) -> bool,
 ) -> bool {
-    map.state(p) == CellState::Free
-        && (config.safety_distance == 0.0
-            || map.clearance(p, config.safety_distance) >= config.safety_distance)
-        && supported(p)
+    map.state(p) == CellState::Free && map.is_clear(p, config.safety_distance) && supported(p)
 }
 
 /// At most `k` evenly spaced cells of `cells` (all of them for `k = 0`).
@@ -292,13 +289,19 @@ struct Pool<'a, F> {
     points: Vec<Point3<f64>>,
     fov: &'a F,
     config: &'a ViewpointConfig,
-    /// Whether cluster `i` passes r0 from candidate `v`.
-    passes: FxHashMap<(u32, u32), bool>,
+    /// Sampled cells of cluster `i` seen from candidate `v`, when they reach r0.
+    passes: FxHashMap<(u32, u32), Option<usize>>,
 }
 
 impl<F: FieldOfView> Pool<'_, F> {
-    /// r(v) ≥ r0 for cluster `i` from candidate `v`, stopping as soon as the answer is known.
+    /// Whether r(v) ≥ r0 for cluster `i` from candidate `v`. The samples are counted to the
+    /// end only while r0 is still reachable; a full count is kept for choosing representatives.
     fn passes(&mut self, i: usize, v: usize) -> bool {
+        self.count(i, v).is_some()
+    }
+
+    /// The sampled cells of cluster `i` seen from `v` if they reach r0, else `None`.
+    fn count(&mut self, i: usize, v: usize) -> Option<usize> {
         // Cluster and candidate counts fit u32.
         #[allow(clippy::cast_possible_truncation)]
         let key = (i as u32, v as u32);
@@ -318,19 +321,18 @@ impl<F: FieldOfView> Pool<'_, F> {
             .max(0.0) as usize;
         let p = self.points[v];
         let (mut seen, mut left) = (0usize, n);
-        let mut ok = need == 0;
         for c in cells {
-            if ok || seen + left < need {
+            if seen + left < need {
                 break;
             }
             left -= 1;
             if cell_visible(self.map, &p, *c, self.fov, self.config) {
                 seen += 1;
-                ok = seen >= need;
             }
         }
-        self.passes.insert(key, ok);
-        ok
+        let out = (seen >= need).then_some(seen);
+        self.passes.insert(key, out);
+        out
     }
 
     /// Whether candidate `v` is close enough to cluster `i` to be in its visible region.
@@ -338,19 +340,23 @@ impl<F: FieldOfView> Pool<'_, F> {
         (self.points[v] - self.clusters[i].center()).norm() <= self.reach[i]
     }
 
-    /// Cells of cluster `i` seen from `v`: estimated from the samples, or counted exactly.
-    fn seen(&self, i: usize, v: usize, exact: bool) -> f64 {
+    /// Cells of cluster `i` seen from `v`: estimated from the samples (`v` must pass r0 for
+    /// `i`), or counted exactly.
+    fn seen(&mut self, i: usize, v: usize, exact: bool) -> f64 {
+        if !exact {
+            let k = self.count(i, v).unwrap_or(0);
+            return ratio(k, self.samples[i].len()) * self.clusters[i].score();
+        }
         let p = self.points[v];
-        let cells = if exact {
-            self.clusters[i].cells()
-        } else {
-            &self.samples[i]
-        };
-        let seen = cells
+        let seen = self.clusters[i]
+            .cells()
             .iter()
             .filter(|c| cell_visible(self.map, &p, **c, self.fov, self.config))
             .count();
-        ratio(seen, cells.len()) * self.clusters[i].score()
+        // Counts of whole cells.
+        #[allow(clippy::cast_precision_loss)]
+        let seen = seen as f64;
+        seen
     }
 }
 
