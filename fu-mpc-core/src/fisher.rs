@@ -1,0 +1,308 @@
+//! The Fisher / A-optimality table of equations (15)–(16).
+
+use core::f64::consts::TAU;
+use std::num::NonZeroUsize;
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use lidar_kinematics::{KinematicChain, LidarSensor};
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+
+use crate::error::invalid;
+use crate::{PeriodicPwl, Result};
+
+/// Settings of the Fisher table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FisherConfig {
+    /// Candidate motor angles N_c over one revolution; default 72 (5° apart).
+    pub candidates: usize,
+    /// Neighbours K for each point's PCA normal; default 10 (the issue's and the paper's K).
+    pub neighbours: usize,
+    /// Regularisation ε of tr((F + εI)⁻¹); default 1: the information of one point aligned
+    /// with each axis, so a direction that sees nothing costs 3/ε = 3 while a direction that
+    /// sees hundreds of well-spread normals costs a few hundredths.
+    pub epsilon: f64,
+}
+
+impl Default for FisherConfig {
+    fn default() -> Self {
+        Self {
+            candidates: 72,
+            neighbours: 10,
+            epsilon: 1.0,
+        }
+    }
+}
+
+impl FisherConfig {
+    /// Checks every setting.
+    ///
+    /// # Errors
+    /// [`CoreError::InvalidConfig`] for no candidates, fewer than 3 neighbours, or ε that is not
+    /// positive and finite.
+    pub fn validate(&self) -> Result<()> {
+        if self.candidates == 0 {
+            return invalid("candidates", 0.0, "need at least one candidate angle");
+        }
+        if self.neighbours < 3 {
+            // Counts are small.
+            #[allow(clippy::cast_precision_loss)]
+            return invalid(
+                "neighbours",
+                self.neighbours as f64,
+                "need at least 3 for a plane",
+            );
+        }
+        if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
+            return invalid("epsilon", self.epsilon, "must be positive and finite");
+        }
+        Ok(())
+    }
+}
+
+/// The localisation cost f(θ) = tr((F(θ) + εI)⁻¹) over one motor revolution, eq. (16).
+///
+/// Built once per update from the local cloud and the sensor pose (on any thread: the table is
+/// an immutable `Send + Sync` value), then read by the MPC at any angle by periodic linear
+/// interpolation.
+///
+/// # Example
+/// ```
+/// use fu_mpc_core::{FisherConfig, FisherTable};
+/// use lidar_kinematics::{FieldOfView, KinematicChain, LidarSensor};
+/// use nalgebra::{Isometry3, Point3};
+///
+/// // A floor and one wall in front (+x): directions toward the wall see two constraints.
+/// let mut cloud = Vec::new();
+/// for i in 0..40 {
+///     for j in 0..40 {
+///         let (a, b) = (f64::from(i) * 0.25 - 5.0, f64::from(j) * 0.25 - 5.0);
+///         cloud.push(Point3::new(a, b, -1.0));
+///         cloud.push(Point3::new(4.0, a, b * 0.3));
+///     }
+/// }
+/// // A forward-looking sensor (±35° azimuth), so the motor angle decides what it sees.
+/// let sensor = LidarSensor::ring16()
+///     .with_field_of_view(FieldOfView::try_new(-0.6, 0.6, -0.26, 0.26).unwrap());
+/// let table = FisherTable::build(&cloud, &Isometry3::identity(), &KinematicChain::default(),
+///                                &sensor, &FisherConfig::default()).unwrap();
+/// assert_eq!(table.cost().len(), 72);
+/// assert!(table.value(0.0) < table.value(std::f64::consts::PI));
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct FisherTable {
+    cost: PeriodicPwl,
+    information: Vec<Matrix3<f64>>,
+    points_used: usize,
+    skipped: usize,
+}
+
+impl FisherTable {
+    /// Builds the table: normals by PCA of each point's K nearest neighbours (a k-d tree), then
+    /// for each candidate angle θ_c the sum F(θ_c) = Σ n nᵀ over the points the sensor sees at
+    /// θ_c (in range and in its field of view, with the chain at θ_c), eq. (15).
+    ///
+    /// Non-finite points are skipped (counted in [`FisherTable::skipped`]); an empty cloud gives
+    /// F = 0 everywhere, so f = 3/ε at every angle (the documented fallback). Coplanar clouds
+    /// give a rank-deficient F, which ε keeps invertible.
+    ///
+    /// # Errors
+    /// An invalid `config`, or kinematic errors for a non-finite body pose.
+    pub fn build(
+        cloud: &[Point3<f64>],
+        body_pose: &Isometry3<f64>,
+        chain: &KinematicChain,
+        sensor: &LidarSensor,
+        config: &FisherConfig,
+    ) -> Result<Self> {
+        config.validate()?;
+        let points: Vec<[f64; 3]> = cloud
+            .iter()
+            .filter(|p| p.iter().all(|v| v.is_finite()))
+            .map(|p| [p.x, p.y, p.z])
+            .collect();
+        let skipped = cloud.len() - points.len();
+        let normals = normals(&points, config.neighbours);
+        let nc = config.candidates;
+        let mut information = vec![Matrix3::zeros(); nc];
+        for (c, f) in information.iter_mut().enumerate() {
+            // Knot counts are far below 2^53.
+            #[allow(clippy::cast_precision_loss)]
+            let theta = TAU * c as f64 / nc as f64;
+            let gate = sensor.visibility_gate(chain, body_pose, theta)?;
+            let mut acc = [0.0f64; 6];
+            for (p, n) in points.iter().zip(&normals) {
+                if gate.contains(&Point3::new(p[0], p[1], p[2])) {
+                    // eq. (15): the six distinct entries of n nᵀ.
+                    acc[0] += n.x * n.x;
+                    acc[1] += n.x * n.y;
+                    acc[2] += n.x * n.z;
+                    acc[3] += n.y * n.y;
+                    acc[4] += n.y * n.z;
+                    acc[5] += n.z * n.z;
+                }
+            }
+            *f = Matrix3::new(
+                acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5],
+            );
+        }
+        let eps = config.epsilon;
+        let values = information
+            .iter()
+            .map(|f| trace_inverse(&(f + Matrix3::identity() * eps)))
+            .collect();
+        Ok(Self {
+            cost: PeriodicPwl::new(values)?,
+            information,
+            points_used: points.len(),
+            skipped,
+        })
+    }
+
+    /// f(θ) as a periodic piecewise-linear function.
+    pub fn cost(&self) -> &PeriodicPwl {
+        &self.cost
+    }
+
+    /// f(θ) \[1\] at any angle.
+    pub fn value(&self, theta: f64) -> f64 {
+        self.cost.value(theta)
+    }
+
+    /// F(θ_c) at each candidate angle (without ε).
+    pub fn information(&self) -> &[Matrix3<f64>] {
+        &self.information
+    }
+
+    /// Points that entered the table.
+    pub fn points_used(&self) -> usize {
+        self.points_used
+    }
+
+    /// Non-finite points skipped.
+    pub fn skipped(&self) -> usize {
+        self.skipped
+    }
+}
+
+/// tr(A⁻¹) of a symmetric positive definite 3 × 3 matrix via its adjugate.
+fn trace_inverse(a: &Matrix3<f64>) -> f64 {
+    let c00 = a[(1, 1)] * a[(2, 2)] - a[(1, 2)] * a[(2, 1)];
+    let c11 = a[(0, 0)] * a[(2, 2)] - a[(0, 2)] * a[(2, 0)];
+    let c22 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)];
+    let det = a.determinant();
+    (c00 + c11 + c22) / det
+}
+
+/// Unit normals by PCA of each point's K nearest neighbours (K capped at the cloud size); a
+/// point with a degenerate neighbourhood gets the z axis.
+pub(crate) fn normals(points: &[[f64; 3]], k: usize) -> Vec<Vector3<f64>> {
+    if points.len() < 3 {
+        return vec![Vector3::z(); points.len()];
+    }
+    let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(points) else {
+        return vec![Vector3::z(); points.len()];
+    };
+    let Some(k) = NonZeroUsize::new(k.min(points.len())) else {
+        return vec![Vector3::z(); points.len()];
+    };
+    points
+        .iter()
+        .map(|p| {
+            let nn = tree
+                .query(p)
+                .nearest_n::<SquaredEuclidean<f64>>(k)
+                .execute();
+            let mut mean = Vector3::zeros();
+            let mut count = 0.0;
+            for r in &nn {
+                let q = points.get(usize::try_from(r.item).unwrap_or(usize::MAX));
+                if let Some(q) = q {
+                    mean += Vector3::from(*q);
+                    count += 1.0;
+                }
+            }
+            if count < 3.0 {
+                return Vector3::z();
+            }
+            mean /= count;
+            let mut cov = Matrix3::zeros();
+            for r in &nn {
+                if let Some(q) = points.get(usize::try_from(r.item).unwrap_or(usize::MAX)) {
+                    let d = Vector3::from(*q) - mean;
+                    cov += d * d.transpose();
+                }
+            }
+            least_eigenvector(&cov)
+        })
+        .collect()
+}
+
+/// The unit eigenvector of the smallest eigenvalue of a symmetric 3 × 3 matrix, in closed
+/// form: the eigenvalues from the trigonometric solution of the characteristic cubic, the
+/// vector as the largest cross product of two rows of A − λI.
+pub(crate) fn least_eigenvector(a: &Matrix3<f64>) -> Vector3<f64> {
+    let scale = a.abs().max();
+    if scale.is_nan() || scale <= 0.0 || !scale.is_finite() {
+        return Vector3::z();
+    }
+    let m = a / scale;
+    let q = m.trace() / 3.0;
+    let p1 = m[(0, 1)].powi(2) + m[(0, 2)].powi(2) + m[(1, 2)].powi(2);
+    let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    if p < 1e-12 {
+        // A multiple of the identity: every direction is an eigenvector.
+        return Vector3::z();
+    }
+    let b = (m - Matrix3::identity() * q) / p;
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    // Smallest root of the cubic.
+    let lambda = q + 2.0 * p * (phi + TAU / 3.0).cos();
+    let s = m - Matrix3::identity() * lambda;
+    let (r0, r1, r2) = (
+        s.row(0).transpose(),
+        s.row(1).transpose(),
+        s.row(2).transpose(),
+    );
+    let candidates = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)];
+    let best = candidates
+        .iter()
+        .max_by(|x, y| x.norm_squared().total_cmp(&y.norm_squared()))
+        .copied()
+        .unwrap_or_else(Vector3::z);
+    let n = best.norm();
+    if n > 1e-300 { best / n } else { Vector3::z() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::SymmetricEigen;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn least_eigenvector_matches_a_reference(
+            v in proptest::collection::vec(-3.0f64..3.0, 6),
+        ) {
+            let a = Matrix3::new(v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5]);
+            let eig = SymmetricEigen::new(a);
+            let mut idx = [0usize, 1, 2];
+            idx.sort_by(|i, j| eig.eigenvalues[*i].total_cmp(&eig.eigenvalues[*j]));
+            let (l0, l1) = (eig.eigenvalues[idx[0]], eig.eigenvalues[idx[1]]);
+            // Only a well-separated smallest eigenvalue has a unique direction.
+            prop_assume!(l1 - l0 > 1e-3 * (1.0 + a.abs().max()));
+            let want = eig.eigenvectors.column(idx[0]).into_owned();
+            let got = least_eigenvector(&a);
+            prop_assert!((got.dot(&want).abs() - 1.0).abs() < 1e-6, "{:?} vs {:?}", got, want);
+        }
+    }
+
+    #[test]
+    fn trace_inverse_matches_nalgebra() {
+        let a = Matrix3::new(4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0);
+        let inv = a.try_inverse().unwrap();
+        assert!((trace_inverse(&a) - inv.trace()).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,54 @@
+//! Frontier- and uncertainty-aware MPC for a motorized LiDAR.
+//!
+//! The receding-horizon scan controller of FU-MPC (Section V, equations (10)–(21)):
+//! [`predict_into`] predicts the scanning process along the UAV's reference,
+//! [`FisherTable`] scores each motor angle by the localisation cost tr(F⁻¹) of the surface
+//! normals it sees, [`frontier_surrogates`] scores it by the frontiers it sees, and [`FuMpc`]
+//! chooses the motor's angular accelerations under its speed and acceleration limits.
+//! [`FixedSpeed`] and the single-term variants of [`FuMpc`] are the baselines, all behind the
+//! [`ScanController`] trait.
+//!
+//! # Example
+//! ```
+//! use fu_mpc_core::{FixedSpeed, FuMpc, MpcConfig, ScanController, ScanInput};
+//! use lidar_kinematics::{KinematicChain, MotorState};
+//! use nalgebra::Isometry3;
+//!
+//! # fn main() -> Result<(), fu_mpc_core::CoreError> {
+//! let config = MpcConfig::default();
+//! let reference = vec![Isometry3::identity(); config.horizon + 1];
+//! let input = ScanInput { motor: MotorState::new(0.0, 1.0), reference: &reference, targets: &[], fisher: None };
+//! let mut controllers: Vec<Box<dyn ScanController>> = vec![
+//!     Box::new(FuMpc::new(config, KinematicChain::default())?),
+//!     Box::new(FixedSpeed::new(100f64.to_radians(), config.limits, config.dt)?),
+//! ];
+//! for c in &mut controllers {
+//!     let cmd = c.command(&input)?;
+//!     assert!(cmd.acceleration.abs() <= config.limits.u_max(), "{}", c.name());
+//! }
+//! # Ok(()) }
+//! ```
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+mod controller;
+mod error;
+mod fisher;
+mod mpc;
+mod predict;
+mod pwl;
+mod qp;
+mod utility;
+
+pub use controller::{FixedSpeed, ScanCommand, ScanController, ScanInput, ScanStatus};
+pub use error::{CoreError, Result};
+pub use fisher::{FisherConfig, FisherTable};
+pub use mpc::{CostTerms, FuMpc, MpcConfig, MpcSolution};
+pub use predict::{PredictedStep, predict_into};
+pub use pwl::PeriodicPwl;
+pub use utility::{FrontierTarget, UtilityConfig, frontier_surrogates};
+
+/// The README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

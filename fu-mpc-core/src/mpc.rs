@@ -1,0 +1,519 @@
+//! The FU-MPC solver of equations (19)–(21).
+
+use lidar_kinematics::{KinematicChain, MotorLimits, MotorModel};
+
+use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
+use crate::error::invalid;
+use crate::qp::StepQp;
+use crate::utility::frontier_surrogates;
+use crate::{CoreError, PeriodicPwl, PredictedStep, Result, UtilityConfig, predict_into};
+
+/// Settings of the FU-MPC controller.
+///
+/// Defaults: the paper's cycle Δt = 0.1 s and speed limit 180 deg/s; the rest chosen here
+/// and explained per field.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MpcConfig {
+    /// Horizon N (steps); default 20, i.e. 2 s: long enough to plan a dwell and the turn back.
+    pub horizon: usize,
+    /// Step Δt \[s\]; default 0.1 (the paper's 10 Hz cycle).
+    pub dt: f64,
+    /// Speed and acceleration limits: default |ω| ≤ π rad/s (the paper's 180 deg/s, in both
+    /// directions, so the sensor can turn back to a target instead of going round) and
+    /// |u| ≤ 2π rad/s² (full speed in 0.5 s).
+    pub limits: MotorLimits,
+    /// α of (19), weight of the frontier term (normalised to [0, 1] per step); default 1.
+    pub alpha: f64,
+    /// β of (19), weight of the localisation cost f ∈ (0, 3/ε]; default 1.
+    pub beta: f64,
+    /// γ of (19), weight of (u_{k+1} − u_k)²; default 0.01: a change of 3 rad/s² costs about
+    /// as much as one step seeing 10 % less of the frontier.
+    pub gamma: f64,
+    /// Candidate angles N_c of the frontier surrogates; default 72 (5°).
+    pub knots: usize,
+    /// Gates and decay of the frontier utility.
+    pub utility: UtilityConfig,
+    /// Sequential-linearisation iterations; default 8.
+    pub iterations: usize,
+    /// Weight ρ of the proximal term (ρ/2)‖u − ū‖² that keeps each step local; default 0.05.
+    pub proximal: f64,
+}
+
+impl Default for MpcConfig {
+    fn default() -> Self {
+        Self {
+            horizon: 20,
+            dt: 0.1,
+            limits: MotorLimits::try_new(
+                -core::f64::consts::PI,
+                core::f64::consts::PI,
+                core::f64::consts::TAU,
+            )
+            .unwrap_or_else(|_| unreachable_limits()),
+            alpha: 1.0,
+            beta: 1.0,
+            gamma: 0.01,
+            knots: 72,
+            utility: UtilityConfig::default(),
+            iterations: 8,
+            proximal: 0.05,
+        }
+    }
+}
+
+/// The default limits are valid constants; this is never reached.
+#[cold]
+fn unreachable_limits() -> MotorLimits {
+    MotorLimits::try_new(0.0, 0.0, 0.0).unwrap_or_else(|_| unreachable_limits())
+}
+
+impl MpcConfig {
+    /// Checks every setting.
+    ///
+    /// # Errors
+    /// [`CoreError::InvalidConfig`] naming the first setting out of range.
+    pub fn validate(&self) -> Result<()> {
+        if self.horizon == 0 {
+            return invalid("horizon", 0.0, "must be at least 1");
+        }
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return invalid("dt", self.dt, "must be positive and finite [s]");
+        }
+        for (what, v) in [
+            ("alpha", self.alpha),
+            ("beta", self.beta),
+            ("gamma", self.gamma),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return invalid(what, v, "must be >= 0 and finite");
+            }
+        }
+        if !(self.proximal.is_finite() && self.proximal > 0.0) {
+            return invalid("proximal", self.proximal, "must be positive and finite");
+        }
+        if self.knots == 0 {
+            return invalid("knots", 0.0, "must be at least 1");
+        }
+        self.utility.validate()
+    }
+}
+
+/// The cost of a solution, term by term.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CostTerms {
+    /// α Σ_k J_k(θ_k).
+    pub frontier: f64,
+    /// β Σ_k f(θ_k).
+    pub localisation: f64,
+    /// γ Σ_k (u_{k+1} − u_k)².
+    pub smoothness: f64,
+}
+
+impl CostTerms {
+    /// The total cost (19).
+    pub fn total(&self) -> f64 {
+        self.frontier + self.localisation + self.smoothness
+    }
+}
+
+/// The full result of the last FU-MPC update.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MpcSolution {
+    /// The control sequence u_0..u_{N−1} \[rad/s²\].
+    pub controls: Vec<f64>,
+    /// Predicted states x_0..x_N along the reference.
+    pub predicted: Vec<PredictedStep>,
+    /// The cost of the sequence.
+    pub cost: CostTerms,
+    /// The cost of the best warm start (shifted previous solution or constant speed).
+    pub warm_start_cost: f64,
+    /// Sequential-linearisation iterations run.
+    pub iterations: usize,
+}
+
+/// The FU-MPC scan controller (19)–(21): chooses the motor's angular accelerations so the
+/// spinning LiDAR looks at frontiers while keeping localisation well constrained.
+///
+/// Each update: builds the per-step frontier surrogates J_k, starts from the best of the
+/// shifted previous solution, constant-speed candidates and cruise-then-stop candidates
+/// (dwells at the reachable angles), then repeats a convex QP in u
+/// (the linearised surrogate costs, the smoothness term, a proximal term, |u| ≤ u_max and
+/// ω_min ≤ ω_k ≤ ω_max) and a backtracking line search on the true surrogate cost. The
+/// terms are evaluated at the predicted states θ_1..θ_N, the ones the controls move (θ_0 is
+/// fixed). Every sequence it considers satisfies (20)–(21), so the saturation of (11) stays
+/// inactive and θ is affine in u (when ω_0 itself is outside the limits, the prediction
+/// starts from the nearest limit).
+///
+/// # Example
+/// ```
+/// use fu_mpc_core::{FrontierTarget, FuMpc, MpcConfig, ScanController, ScanInput};
+/// use lidar_kinematics::{KinematicChain, MotorState};
+/// use nalgebra::{Isometry3, Point3};
+///
+/// # fn main() -> Result<(), fu_mpc_core::CoreError> {
+/// let config = MpcConfig { beta: 0.0, ..MpcConfig::default() };
+/// let mut mpc = FuMpc::new(config, KinematicChain::default())?;
+/// let reference = vec![Isometry3::identity(); config.horizon + 1];
+/// let targets = [FrontierTarget { center: Point3::new(0.0, 4.0, 0.0), score: 50.0 }];
+/// let input = ScanInput { motor: MotorState::new(0.0, 3.0), reference: &reference, targets: &targets, fisher: None };
+/// let cmd = mpc.command(&input)?;
+/// assert!(cmd.acceleration.abs() <= config.limits.u_max());
+/// assert!(mpc.solution().cost.total() <= mpc.solution().warm_start_cost + 1e-12);
+/// # Ok(()) }
+/// ```
+#[derive(Debug, Clone)]
+pub struct FuMpc {
+    config: MpcConfig,
+    chain: KinematicChain,
+    motor: MotorModel,
+    name: &'static str,
+    surrogates: Vec<PeriodicPwl>,
+    previous: Vec<f64>,
+    solution: MpcSolution,
+}
+
+impl FuMpc {
+    /// A controller with the given settings and kinematic chain.
+    ///
+    /// # Errors
+    /// An invalid `config`.
+    pub fn new(config: MpcConfig, chain: KinematicChain) -> Result<Self> {
+        config.validate()?;
+        let n = config.horizon;
+        let name = match (config.alpha > 0.0, config.beta > 0.0) {
+            (true, true) => "fu-mpc",
+            (false, true) => "uncertainty",
+            (true, false) => "frontier",
+            (false, false) => "smooth",
+        };
+        Ok(Self {
+            config,
+            chain,
+            motor: MotorModel::new(config.limits),
+            name,
+            surrogates: Vec::new(),
+            previous: vec![0.0; n],
+            solution: MpcSolution {
+                controls: vec![0.0; n],
+                predicted: vec![PredictedStep::default(); n + 1],
+                ..MpcSolution::default()
+            },
+        })
+    }
+
+    /// The uncertainty-only baseline (α = 0, like UA-MPC).
+    ///
+    /// # Errors
+    /// An invalid `config`.
+    pub fn uncertainty_only(config: MpcConfig, chain: KinematicChain) -> Result<Self> {
+        Self::new(
+            MpcConfig {
+                alpha: 0.0,
+                ..config
+            },
+            chain,
+        )
+    }
+
+    /// The frontier-only baseline (β = 0).
+    ///
+    /// # Errors
+    /// An invalid `config`.
+    pub fn frontier_only(config: MpcConfig, chain: KinematicChain) -> Result<Self> {
+        Self::new(
+            MpcConfig {
+                beta: 0.0,
+                ..config
+            },
+            chain,
+        )
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &MpcConfig {
+        &self.config
+    }
+
+    /// The last update's full result.
+    pub fn solution(&self) -> &MpcSolution {
+        &self.solution
+    }
+
+    /// Forgets the previous solution (the next warm start is constant-speed only).
+    pub fn reset(&mut self) {
+        self.previous.fill(0.0);
+    }
+
+    /// The per-step frontier surrogates J_0..J_N of the last update.
+    pub fn surrogates(&self) -> &[PeriodicPwl] {
+        &self.surrogates
+    }
+
+    /// The cost terms of a control sequence for `input`: the surrogates are rebuilt for it and
+    /// the sequence is first clipped to the limits (as every sequence the solver considers).
+    ///
+    /// # Errors
+    /// As [`ScanController::command`], and [`CoreError::LengthMismatch`] unless
+    /// `controls.len()` is the horizon.
+    pub fn evaluate(&mut self, input: &ScanInput<'_>, controls: &[f64]) -> Result<CostTerms> {
+        self.check(input)?;
+        if controls.len() != self.config.horizon {
+            return Err(CoreError::LengthMismatch {
+                what: "controls",
+                expected: self.config.horizon,
+                found: controls.len(),
+            });
+        }
+        self.build_surrogates(input)?;
+        let l = self.config.limits;
+        let omega0 = input.motor.omega.clamp(l.omega_min(), l.omega_max());
+        let mut u = controls.to_vec();
+        self.make_feasible(omega0, &mut u);
+        Ok(self.cost(
+            input.motor.theta,
+            omega0,
+            &u,
+            input.fisher.map(|f| f.cost()),
+        ))
+    }
+
+    fn check(&self, input: &ScanInput<'_>) -> Result<()> {
+        let n = self.config.horizon;
+        if input.reference.len() != n + 1 {
+            return Err(CoreError::LengthMismatch {
+                what: "reference poses (horizon + 1)",
+                expected: n + 1,
+                found: input.reference.len(),
+            });
+        }
+        if !(input.motor.theta.is_finite() && input.motor.omega.is_finite()) {
+            return Err(CoreError::NonFinite {
+                what: "motor state",
+            });
+        }
+        Ok(())
+    }
+
+    fn build_surrogates(&mut self, input: &ScanInput<'_>) -> Result<()> {
+        let mut surrogates = core::mem::take(&mut self.surrogates);
+        let built = frontier_surrogates(
+            &self.chain,
+            input.reference,
+            input.targets,
+            &self.config.utility,
+            self.config.knots,
+            &mut surrogates,
+        );
+        self.surrogates = surrogates;
+        built
+    }
+
+    /// Clips `u` in place so that |u_k| ≤ u_max and every ω_k stays in the limits.
+    fn make_feasible(&self, omega0: f64, u: &mut [f64]) {
+        let l = &self.config.limits;
+        let dt = self.config.dt;
+        let mut w = omega0;
+        for x in u.iter_mut() {
+            let lo = ((l.omega_min() - w) / dt).max(-l.u_max());
+            let hi = ((l.omega_max() - w) / dt).min(l.u_max());
+            *x = if x.is_finite() {
+                x.clamp(lo, hi)
+            } else {
+                0.0f64.clamp(lo, hi)
+            };
+            w = (w + *x * dt).clamp(l.omega_min(), l.omega_max());
+        }
+    }
+
+    /// The cost terms of a feasible sequence, with θ from the affine model.
+    fn cost(&self, theta0: f64, omega0: f64, u: &[f64], fisher: Option<&PeriodicPwl>) -> CostTerms {
+        let c = &self.config;
+        let (mut th, mut w) = (theta0, omega0);
+        let mut t = CostTerms::default();
+        for (k, x) in u.iter().enumerate() {
+            w += x * c.dt; // eq. (11), inside the limits
+            th += w * c.dt; // eq. (12)
+            if c.alpha > 0.0 {
+                t.frontier += c.alpha * self.surrogates[k + 1].value(th);
+            }
+            if let (Some(f), true) = (fisher, c.beta > 0.0) {
+                t.localisation += c.beta * f.value(th);
+            }
+            if k + 1 < u.len() {
+                let d = u[k + 1] - x;
+                t.smoothness += c.gamma * d * d;
+            }
+        }
+        t
+    }
+
+    /// Slopes s_k = α J_k'(θ_k) + β f'(θ_k) along a sequence, k = 1..N.
+    fn slopes(
+        &self,
+        theta0: f64,
+        omega0: f64,
+        u: &[f64],
+        fisher: Option<&PeriodicPwl>,
+        s: &mut [f64],
+    ) {
+        let c = &self.config;
+        let (mut th, mut w) = (theta0, omega0);
+        for (k, x) in u.iter().enumerate() {
+            w += x * c.dt;
+            th += w * c.dt;
+            let mut v = 0.0;
+            if c.alpha > 0.0 {
+                v += c.alpha * self.surrogates[k + 1].eval(th).1;
+            }
+            if let (Some(f), true) = (fisher, c.beta > 0.0) {
+                v += c.beta * f.eval(th).1;
+            }
+            s[k] = v;
+        }
+    }
+
+    fn solve(&mut self, input: &ScanInput<'_>) -> Result<ScanStatus> {
+        let c = self.config;
+        let n = c.horizon;
+        let l = c.limits;
+        let theta0 = input.motor.theta;
+        let omega0 = input.motor.omega.clamp(l.omega_min(), l.omega_max());
+        let fisher = input.fisher.map(|f| f.cost());
+        self.build_surrogates(input)?;
+        // Warm starts: the shifted previous solution and constant-speed candidates.
+        let mut best = self.previous.clone();
+        best.rotate_left(1);
+        if let Some(last) = best.last_mut() {
+            *last = self.previous[n - 1];
+        }
+        self.make_feasible(omega0, &mut best);
+        let mut best_cost = self.cost(theta0, omega0, &best, fisher).total();
+        let mut cand = vec![0.0; n];
+        let consider = |this: &Self, cand: &mut [f64], best: &mut Vec<f64>, best_cost: &mut f64| {
+            this.make_feasible(omega0, cand);
+            let cc = this.cost(theta0, omega0, cand, fisher).total();
+            if cc < *best_cost {
+                *best_cost = cc;
+                best.copy_from_slice(cand);
+            }
+        };
+        // Constant-speed candidates.
+        for target in [
+            l.omega_min(),
+            l.omega_max(),
+            0.5 * (l.omega_min() + l.omega_max()),
+            omega0,
+        ] {
+            let mut w = omega0;
+            for x in cand.iter_mut() {
+                *x = l.saturate_acceleration((target - w) / c.dt);
+                w += *x * c.dt;
+            }
+            consider(self, &mut cand, &mut best, &mut best_cost);
+        }
+        // Cruise-then-stop candidates: cruise at ω0, ω_max or ω_min, then slow to the speed
+        // nearest zero from step m,
+        // so a dwell at any reachable angle is among the starts (the surrogates have many
+        // local minima; the linearised steps only refine).
+        let stop = 0.0f64.clamp(l.omega_min(), l.omega_max());
+        for cruise in [omega0, l.omega_max(), l.omega_min()] {
+            for m in (0..n).step_by(2) {
+                let mut w = omega0;
+                for (k, x) in cand.iter_mut().enumerate() {
+                    let target = if k < m { cruise } else { stop };
+                    *x = l.saturate_acceleration((target - w) / c.dt);
+                    w += *x * c.dt;
+                }
+                consider(self, &mut cand, &mut best, &mut best_cost);
+            }
+        }
+        self.solution.warm_start_cost = best_cost;
+        // Sequential linearisation.
+        let mut u = best;
+        let mut cost = best_cost;
+        let mut status = ScanStatus::IterationLimit;
+        let mut iterations = 0;
+        let mut s = vec![0.0; n];
+        let dt2 = c.dt * c.dt;
+        let mut qp = StepQp {
+            n,
+            gamma: c.gamma,
+            rho: c.proximal,
+            q: vec![0.0; n],
+            u_max: l.u_max(),
+            omega0,
+            dt: c.dt,
+            w_lo: vec![l.omega_min(); n],
+            w_hi: vec![l.omega_max(); n],
+        };
+        let mut trial = vec![0.0; n];
+        for _ in 0..c.iterations {
+            iterations += 1;
+            self.slopes(theta0, omega0, &u, fisher, &mut s);
+            // q_j = Σ_{k>j} s_k Δt² (k − j) − ρ ū_j: θ_k moves by Δt²(k − j) per unit of u_j.
+            let mut acc = 0.0;
+            let mut weighted = 0.0;
+            for j in (0..n).rev() {
+                // After this step: acc = Σ_{k ≥ j} s_k, weighted = Σ_{k ≥ j} s_k (k − j + 1).
+                acc += s[j];
+                weighted += acc;
+                qp.q[j] = dt2 * weighted - c.proximal * u[j];
+            }
+            let Some(x) = qp.solve_clarabel() else {
+                status = ScanStatus::Fallback;
+                break;
+            };
+            // Backtracking on the true surrogate cost.
+            let mut t = 1.0;
+            let mut accepted = false;
+            for _ in 0..10 {
+                for j in 0..n {
+                    trial[j] = u[j] + t * (x[j] - u[j]);
+                }
+                self.make_feasible(omega0, &mut trial);
+                let tc = self.cost(theta0, omega0, &trial, fisher).total();
+                if tc < cost - 1e-12 * (1.0 + cost.abs()) {
+                    u.copy_from_slice(&trial);
+                    cost = tc;
+                    accepted = true;
+                    break;
+                }
+                t *= 0.5;
+            }
+            if !accepted {
+                status = ScanStatus::Converged;
+                break;
+            }
+        }
+        self.solution.cost = self.cost(theta0, omega0, &u, fisher);
+        self.solution.iterations = iterations;
+        self.solution.controls.copy_from_slice(&u);
+        self.previous.copy_from_slice(&u);
+        // The reported prediction comes from the motor model itself, eqs. (11)–(14).
+        predict_into(
+            &self.chain,
+            &self.motor,
+            input.motor,
+            &u,
+            c.dt,
+            input.reference,
+            &mut self.solution.predicted,
+        )?;
+        Ok(status)
+    }
+}
+
+impl ScanController for FuMpc {
+    fn name(&self) -> &str {
+        self.name
+    }
+
+    fn command(&mut self, input: &ScanInput<'_>) -> Result<ScanCommand> {
+        self.check(input)?;
+        let status = self.solve(input)?;
+        Ok(ScanCommand {
+            acceleration: self.solution.controls[0],
+            status,
+        })
+    }
+}
