@@ -37,7 +37,7 @@ impl FisherConfig {
     /// Checks every setting.
     ///
     /// # Errors
-    /// [`CoreError::InvalidConfig`] for no candidates, fewer than 3 neighbours, or ε that is not
+    /// [`CoreError::InvalidConfig`](crate::CoreError::InvalidConfig) for no candidates, fewer than 3 neighbours, or ε that is not
     /// positive and finite.
     pub fn validate(&self) -> Result<()> {
         if self.candidates == 0 {

@@ -1,0 +1,151 @@
+//! Benchmarks of `fu-mpc-core`.
+//!
+//! Targets (medians on the 2-core reference machine): one MPC update with N = 20 and the
+//! dedicated QP ≤ 20 µs (p99 ≤ 100 µs; the dedicated back-end is not built yet, the update
+//! below uses Clarabel); the Fisher table from 20,000 points (K = 10, N_c = 72) ≤ 5 ms;
+//! frontier surrogates for 100 targets × 20 steps × 72 knots ≤ 0.5 ms.
+//!
+//! Run with `cargo bench -p fu-mpc-benches --bench fu_mpc_core`.
+#![allow(clippy::unwrap_used)]
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use fu_mpc_core::{
+    FisherConfig, FisherTable, FrontierTarget, FuMpc, MpcConfig, ScanController, ScanInput,
+    UtilityConfig, frontier_surrogates,
+};
+use lidar_kinematics::{FieldOfView, KinematicChain, LidarSensor, MotorState};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+/// A deterministic pseudo-random sequence in [0, 1).
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// 20,000 points on the walls, floor and ceiling of a 12 × 8 × 3 m room with pillars.
+fn room_cloud(n: usize) -> Vec<Point3<f64>> {
+    let mut r = Lcg(7);
+    (0..n)
+        .map(|_| {
+            let (a, b) = (r.next(), r.next());
+            match (r.next() * 6.0) as u32 {
+                0 => Point3::new(-6.0, 8.0 * a - 4.0, 3.0 * b - 1.5),
+                1 => Point3::new(6.0, 8.0 * a - 4.0, 3.0 * b - 1.5),
+                2 => Point3::new(12.0 * a - 6.0, -4.0, 3.0 * b - 1.5),
+                3 => Point3::new(12.0 * a - 6.0, 4.0, 3.0 * b - 1.5),
+                4 => Point3::new(12.0 * a - 6.0, 8.0 * a.sin() * b - 4.0, -1.5),
+                _ => {
+                    let t = std::f64::consts::TAU * a;
+                    Point3::new(2.0 + 0.3 * t.cos(), 1.0 + 0.3 * t.sin(), 3.0 * b - 1.5)
+                }
+            }
+        })
+        .collect()
+}
+
+fn reference(n: usize, dt: f64) -> Vec<Isometry3<f64>> {
+    (0..=n)
+        .map(|i| {
+            let t = i as f64 * dt;
+            Isometry3::from_parts(
+                Translation3::new(1.5 * t, 0.3 * t, 0.0),
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.2 * t),
+            )
+        })
+        .collect()
+}
+
+fn targets(n: usize) -> Vec<FrontierTarget> {
+    let mut r = Lcg(3);
+    (0..n)
+        .map(|_| FrontierTarget {
+            center: Point3::new(
+                20.0 * r.next() - 10.0,
+                20.0 * r.next() - 10.0,
+                2.0 * r.next() - 1.0,
+            ),
+            score: 100.0 * r.next(),
+        })
+        .collect()
+}
+
+fn sensor() -> LidarSensor {
+    LidarSensor::ring16().with_field_of_view(FieldOfView::try_new(-0.6, 0.6, -0.26, 0.26).unwrap())
+}
+
+fn bench_fisher(c: &mut Criterion) {
+    let cloud = room_cloud(20_000);
+    let chain = KinematicChain::default();
+    let cfg = FisherConfig::default();
+    c.bench_function("fisher_table_20k_points_k10_nc72", |b| {
+        b.iter(|| {
+            black_box(
+                FisherTable::build(
+                    black_box(&cloud),
+                    &Isometry3::identity(),
+                    &chain,
+                    &sensor(),
+                    &cfg,
+                )
+                .unwrap(),
+            )
+        });
+    });
+}
+
+fn bench_surrogates(c: &mut Criterion) {
+    let chain = KinematicChain::default();
+    let refs = reference(20, 0.1);
+    let t = targets(100);
+    let cfg = UtilityConfig::default();
+    let mut out = Vec::new();
+    c.bench_function("frontier_surrogates_100_targets_21_steps_72_knots", |b| {
+        b.iter(|| {
+            frontier_surrogates(&chain, black_box(&refs), black_box(&t), &cfg, 72, &mut out)
+                .unwrap();
+            black_box(&out);
+        });
+    });
+}
+
+fn bench_mpc(c: &mut Criterion) {
+    let chain = KinematicChain::default();
+    let cfg = MpcConfig::default();
+    let refs = reference(cfg.horizon, cfg.dt);
+    let t = targets(20);
+    let table = FisherTable::build(
+        &room_cloud(5_000),
+        &Isometry3::identity(),
+        &chain,
+        &sensor(),
+        &FisherConfig::default(),
+    )
+    .unwrap();
+    let mut mpc = FuMpc::new(cfg, chain).unwrap();
+    let mut theta = 0.0;
+    c.bench_function("fu_mpc_update_n20_clarabel", |b| {
+        b.iter(|| {
+            // A moving motor angle, so warm starts differ between iterations.
+            theta += 0.1;
+            let input = ScanInput {
+                motor: MotorState::new(theta, 1.0),
+                reference: &refs,
+                targets: &t,
+                fisher: Some(&table),
+            };
+            black_box(mpc.command(black_box(&input)).unwrap())
+        });
+    });
+}
+
+criterion_group!(benches, bench_fisher, bench_surrogates, bench_mpc);
+criterion_main!(benches);
