@@ -1,11 +1,15 @@
-//! A heuristic ATSP solver: α-nearness candidates, Or-opt, 2-opt and orientation-preserving 3-opt
-//! local search with don't-look bits, and iterated double-bridge kicks.
+//! A heuristic ATSP solver: α-nearness candidates, 2-opt, Or-opt and a variable-depth chain of
+//! sequential 3-opt steps with don't-look bits, iterated with double-bridge kicks and restarts.
 //!
-//! This is the first step toward the LKH-style solver: the candidate sets and the lower bound
-//! come from the Held–Karp machinery of [`crate::held_karp_bound`]; the local search uses
-//! segment insertion (Or-opt, segments of 1–3 nodes), the orientation-preserving segment swap
-//! a→b…c→d…e→f ⇒ a→d…e→b…c→f, and 2-opt with reversal, whose asymmetric cost change comes
-//! from prefix sums of the forward and backward arc costs. Kicks are double bridges.
+//! The candidate sets and the lower bound come from the Held–Karp machinery of
+//! [`crate::held_karp_bound`]; the local search uses segment insertion (Or-opt, segments of
+//! 1–3 nodes), 2-opt with reversal, whose asymmetric cost change comes from prefix sums of the
+//! forward and backward arc costs, and `Chain`, the asymmetric Lin–Kernighan of
+//! Kanellakis–Papadimitriou. A trial kicks the current tour with a double bridge and improves it
+//! again; a current tour that no kick has improved for a while is replaced by the best tour
+//! perturbed by several double bridges. The automatic budget runs at least n trials and goes on
+//! while the best tour still improves; it stops early when the tour is proven optimal (its
+//! length reaches the lower bound, rounded up when every cost is an integer).
 //! Everything is seeded: the same instance, settings and seed give the same tour.
 
 use crate::bound::{BoundConfig, alpha_candidates, held_karp_bound};
@@ -27,15 +31,16 @@ pub struct SolverConfig {
     /// Candidate successors per city, by α-nearness. Default 10: free arcs into the start of
     /// an open tour and duplicated nodes create many ties, which 5 candidates do not cover.
     pub candidates: usize,
-    /// Kick-and-improve trials after the first local optimum. Default 0: automatic,
-    /// `trials_per_city` × n (LKH runs n trials), at least 30; instances of up to 12 cities
-    /// get 300 cheap random restarts.
+    /// Kick-and-improve trials after the first local optimum. Default 0: automatic — at least
+    /// `trials_per_city` × n (LKH runs n trials) and 30, then more while the best tour still
+    /// improves: the search stops after max(n/2, n²/60) trials in a row without
+    /// improvement, or at 50 trials per city. Instances of up to 12 cities get 300 cheap
+    /// random restarts. Any other value is an exact trial budget.
     pub max_trials: usize,
-    /// Trials per city when `max_trials` is 0. Default 1.
+    /// Minimum trials per city when `max_trials` is 0. Default 1.
     pub trials_per_city: usize,
-    /// Stop after this many trials in a row without improvement, plus 5 per city. Default
-    /// `usize::MAX` (no such stop). Replanning loops that need a fast answer set it (e.g. 100):
-    /// on TSPLIB it trades a few optima for a several-fold speed-up.
+    /// Stop after this many trials in a row without improvement, plus 5 per city, whatever the
+    /// trial budget. Default `usize::MAX` (no such stop).
     pub stall_trials: usize,
     /// Seed of the kicks. Default 1.
     pub seed: u64,
@@ -73,7 +78,7 @@ impl SolverConfig {
         self
     }
 
-    /// Sets the automatic trial budget per city (used when `max_trials` is 0).
+    /// Sets the minimum automatic trial budget per city (used when `max_trials` is 0).
     pub fn with_trials_per_city(mut self, trials: usize) -> Self {
         self.trials_per_city = trials;
         self
@@ -93,7 +98,7 @@ pub struct Solution {
     pub tour: Tour,
     /// The Held–Karp lower bound on the closed tour of the solved matrix.
     pub lower_bound: f64,
-    /// Trials run (kicks after the first local optimum).
+    /// Trials run (kicks or restarts after the first local optimum).
     pub trials: usize,
 }
 
@@ -297,6 +302,16 @@ const TINY_TRIALS: usize = 300;
 
 /// The smallest automatic trial budget (tiny instances need more trials than cities).
 const MIN_AUTO_TRIALS: usize = 30;
+
+/// The automatic budget never runs more than this many trials per city.
+const MAX_TRIALS_PER_CITY: usize = 50;
+
+/// Kicks of the current tour without improving it, after which the search restarts from the
+/// best tour perturbed by [`RESTART_KICKS`] double bridges.
+const RUN_STALL: usize = 100;
+
+/// Double bridges applied to the best tour at a restart.
+const RESTART_KICKS: usize = 8;
 
 /// First-level continuations of a chain that are followed deeper (the best by partial gain).
 const FIRST_BREADTH: usize = 3;
@@ -548,6 +563,57 @@ enum Next {
     Go(Step, f64),
 }
 
+/// The double bridge A B C D ⇒ A C B D of `tour` at three random cuts, with the six cities at
+/// the ends of the changed arcs; `None` when two cuts coincide.
+fn double_bridge(tour: &[usize], rng: &mut Rng) -> Option<(Vec<usize>, [usize; 6])> {
+    let n = tour.len();
+    let mut cuts = [
+        1 + rng.below(n - 1),
+        1 + rng.below(n - 1),
+        1 + rng.below(n - 1),
+    ];
+    cuts.sort_unstable();
+    if cuts[0] == cuts[1] || cuts[1] == cuts[2] {
+        return None;
+    }
+    let (p, q, r) = (cuts[0], cuts[1], cuts[2]);
+    let mut kicked = Vec::with_capacity(n);
+    kicked.extend_from_slice(&tour[..p]);
+    kicked.extend_from_slice(&tour[q..r]);
+    kicked.extend_from_slice(&tour[p..q]);
+    kicked.extend_from_slice(&tour[r..]);
+    let ends = [
+        tour[p - 1],
+        tour[p],
+        tour[q - 1],
+        tour[q],
+        tour[r - 1],
+        tour[r % n],
+    ];
+    Some((kicked, ends))
+}
+
+/// Trials without improvement after which the automatic budget stops (once its minimum is
+/// spent): n/2, growing to n²/60 above 30 cities, where a kick is less likely to reach the part
+/// of the tour that still needs work and a trial is a smaller part of the time than the lower
+/// bound.
+fn improvement_window(n: usize) -> usize {
+    (n / 2).max(n * n / 60)
+}
+
+/// A test of "this closed length is optimal": it reaches the lower bound, or, when every cost
+/// is an integer, the bound rounded up.
+fn proven_optimal(m: &CostMatrix, lower_bound: f64) -> impl Fn(f64) -> bool {
+    let n = m.len();
+    let integral = (0..n).all(|i| (0..n).all(|j| m.cost(i, j).fract() == 0.0));
+    let target = if integral {
+        (lower_bound - 1e-6).ceil()
+    } else {
+        lower_bound
+    };
+    move |len: f64| len <= target + 1e-9 * len.abs().max(1.0)
+}
+
 /// Solves the closed ATSP on `m` heuristically; `should_stop` is polled between trials (pass
 /// `|| false` for a pure trial budget, or a deadline check for a time budget — the library
 /// reads no clock itself).
@@ -632,22 +698,35 @@ pub fn solve(
     let mut best_len = st.length();
     let mut rng = Rng(cfg.seed);
     let mut trials = 0;
-    let optimal = |len: f64| len <= bound.lower_bound + 1e-9 * len.abs().max(1.0);
+    let optimal = proven_optimal(m, bound.lower_bound);
     let stall_limit = cfg.stall_trials.saturating_add(5 * n);
+    // Trials since the best tour last improved, and since the current tour last improved.
     let mut stall = 0;
-    let max_trials = if cfg.max_trials == 0 {
+    let mut run_stall = 0;
+    let (min_trials, max_trials, window) = if cfg.max_trials == 0 {
         let floor = if n <= RESTART_MAX {
             TINY_TRIALS
         } else {
             MIN_AUTO_TRIALS
         };
-        cfg.trials_per_city.saturating_mul(n).max(floor)
+        let base = cfg.trials_per_city.saturating_mul(n).max(floor);
+        let cap = base.max(MAX_TRIALS_PER_CITY.saturating_mul(n));
+        (base, cap, improvement_window(n))
     } else {
-        cfg.max_trials
+        (cfg.max_trials, cfg.max_trials, 0)
     };
-    while trials < max_trials && stall < stall_limit && !optimal(best_len) && !should_stop() {
+    let mut cur = best.clone();
+    let mut cur_len = best_len;
+    let tol = |x: f64| 1e-9 * x.abs().max(1.0);
+    while trials < max_trials
+        && (trials < min_trials || stall < window)
+        && stall < stall_limit
+        && !optimal(best_len)
+        && !should_stop()
+    {
         trials += 1;
         stall += 1;
+        run_stall += 1;
         if n <= RESTART_MAX {
             // Tiny instances: a random restart explores more than a kick among so few arcs.
             let mut order = best.clone();
@@ -658,7 +737,7 @@ pub fn solve(
             let mut queue: Vec<usize> = (0..n).collect();
             st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
             let len = st.length();
-            if len < best_len - 1e-9 * best_len.abs().max(1.0) {
+            if len < best_len - tol(best_len) {
                 stall = 0;
             }
             if len <= best_len {
@@ -667,39 +746,42 @@ pub fn solve(
             }
             continue;
         }
-        // Double bridge on the best tour: A B C D ⇒ A C B D.
-        let mut cuts = [
-            1 + rng.below(n - 1),
-            1 + rng.below(n - 1),
-            1 + rng.below(n - 1),
-        ];
-        cuts.sort_unstable();
-        if cuts[0] == cuts[1] || cuts[1] == cuts[2] {
-            continue;
+        if run_stall > RUN_STALL {
+            // The current tour is stuck: restart from the best tour after several kicks.
+            run_stall = 0;
+            let mut order = best.clone();
+            for _ in 0..RESTART_KICKS {
+                if let Some((kicked, _)) = double_bridge(&order, &mut rng) {
+                    order = kicked;
+                }
+            }
+            st.set_order(order);
+            let mut queue: Vec<usize> = (0..n).collect();
+            st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
+            cur.clone_from(&st.order);
+            cur_len = st.length();
+        } else {
+            let Some((kicked, ends)) = double_bridge(&cur, &mut rng) else {
+                continue;
+            };
+            st.set_order(kicked);
+            let mut queue = ends.to_vec();
+            st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
+            let len = st.length();
+            if len < cur_len - tol(cur_len) {
+                run_stall = 0;
+            }
+            if len <= cur_len {
+                cur_len = len;
+                cur.clone_from(&st.order);
+            }
         }
-        let (p, q, r) = (cuts[0], cuts[1], cuts[2]);
-        let mut kicked = Vec::with_capacity(n);
-        kicked.extend_from_slice(&best[..p]);
-        kicked.extend_from_slice(&best[q..r]);
-        kicked.extend_from_slice(&best[p..q]);
-        kicked.extend_from_slice(&best[r..]);
-        st.set_order(kicked);
-        let mut queue = vec![
-            best[p - 1],
-            best[p],
-            best[q - 1],
-            best[q],
-            best[r - 1],
-            best[r % n],
-        ];
-        st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
-        let len = st.length();
-        if len < best_len - 1e-9 * best_len.abs().max(1.0) {
+        if cur_len < best_len - tol(best_len) {
             stall = 0;
         }
-        if len <= best_len {
-            best_len = len;
-            best.clone_from(&st.order);
+        if cur_len <= best_len {
+            best_len = cur_len;
+            best.clone_from(&cur);
         }
     }
     // Report the tour from city 0.

@@ -1,11 +1,11 @@
 //! The solver on the TSPLIB ATSP instances of `../shared/data/tsplib/` (skipped with a message
 //! when the folder is absent).
 //!
-//! The default trial budget (n trials, tuned for replanning-sized instances) is not enough for
-//! every TSPLIB optimum; these tests use 20 trials per city ([`QUALITY`]).
-//! `instances_under_100_nodes_are_near_optimal` runs in CI. The issue's target, every published
-//! optimum, is `all_published_optima` (ignored: run it with
-//! `cargo test --release -p topo-tsp --test tsplib_optima -- --ignored`); it does not pass yet.
+//! Every test uses the default settings (seed 1). With them the solver reaches every published
+//! optimum but those of [`KNOWN_MISSES`], which stay within [`MISS_GAP`].
+//! `instances_under_100_nodes` runs in CI; `larger_instances` (n ≥ 100) and
+//! `all_published_optima` (the target: no misses; it does not pass yet) are ignored — run them
+//! with `cargo test --release -p topo-tsp --test tsplib_optima -- --ignored`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stderr)]
 
 use std::path::{Path, PathBuf};
@@ -41,14 +41,25 @@ fn optima(dir: &Path) -> Vec<(String, usize, f64)> {
         .collect()
 }
 
-/// The trial budget of these tests: 20 trials per city.
-const QUALITY: usize = 20;
+/// Instances whose optimum the default settings do not reach yet.
+const KNOWN_MISSES: [&str; 4] = ["ftv35", "ftv64", "ft70", "rbg358"];
+
+/// The largest relative gap allowed on [`KNOWN_MISSES`].
+const MISS_GAP: f64 = 0.01;
+
+/// The gap allowed on an instance by the non-target tests: none, or [`MISS_GAP`] on a known miss.
+fn allowed_gap(name: &str) -> f64 {
+    if KNOWN_MISSES.contains(&name) {
+        MISS_GAP
+    } else {
+        0.0
+    }
+}
 
 fn check(dir: &Path, name: &str, n: usize, opt: f64, max_gap: f64) {
     let text = std::fs::read_to_string(dir.join(format!("{name}.atsp"))).unwrap();
     let inst = parse_tsplib(&text).unwrap();
-    let cfg = SolverConfig::default().with_trials_per_city(QUALITY);
-    let sol = solve(&inst.matrix, &cfg, || false).unwrap();
+    let sol = solve(&inst.matrix, &SolverConfig::default(), || false).unwrap();
     let mut seen = vec![false; n];
     assert_eq!(sol.tour.order.len(), n, "{name}");
     assert!(
@@ -83,15 +94,24 @@ fn check(dir: &Path, name: &str, n: usize, opt: f64, max_gap: f64) {
 }
 
 #[test]
-fn instances_under_100_nodes_are_near_optimal() {
+fn instances_under_100_nodes() {
     let Some(dir) = data_dir() else { return };
     for (name, n, opt) in optima(&dir).into_iter().filter(|r| r.1 < 100) {
-        check(&dir, &name, n, opt, 0.005);
+        check(&dir, &name, n, opt, allowed_gap(&name));
     }
 }
 
 #[test]
-#[ignore = "the target of the solver issue; not all optima are reached yet"]
+#[ignore = "seconds in release mode, minutes in debug mode"]
+fn larger_instances() {
+    let Some(dir) = data_dir() else { return };
+    for (name, n, opt) in optima(&dir).into_iter().filter(|r| r.1 >= 100) {
+        check(&dir, &name, n, opt, allowed_gap(&name));
+    }
+}
+
+#[test]
+#[ignore = "the target of the solver issue; the optima of KNOWN_MISSES are not reached yet"]
 fn all_published_optima() {
     let Some(dir) = data_dir() else { return };
     for (name, n, opt) in optima(&dir) {
