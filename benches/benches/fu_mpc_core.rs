@@ -12,8 +12,8 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use fu_mpc_core::{
-    FisherConfig, FisherTable, FrontierTarget, FuMpc, MpcConfig, ScanController, ScanInput,
-    UtilityConfig, frontier_surrogates,
+    FisherConfig, FisherTable, FrontierTarget, FuMpc, MpcConfig, QpBackend, ScanController,
+    ScanInput, UtilityConfig, frontier_surrogates,
 };
 use lidar_kinematics::{FieldOfView, KinematicChain, LidarSensor, MotorState};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -130,21 +130,26 @@ fn bench_mpc(c: &mut Criterion) {
         &FisherConfig::default(),
     )
     .unwrap();
-    let mut mpc = FuMpc::new(cfg, chain).unwrap();
-    let mut theta = 0.0;
-    c.bench_function("fu_mpc_update_n20_clarabel", |b| {
-        b.iter(|| {
-            // A moving motor angle, so warm starts differ between iterations.
-            theta += 0.1;
-            let input = ScanInput {
-                motor: MotorState::new(theta, 1.0),
-                reference: &refs,
-                targets: &t,
-                fisher: Some(&table),
-            };
-            black_box(mpc.command(black_box(&input)).unwrap())
+    for (name, backend) in [
+        ("dedicated", QpBackend::Dedicated),
+        ("clarabel", QpBackend::Clarabel),
+    ] {
+        let mut mpc = FuMpc::new(MpcConfig { backend, ..cfg }, chain).unwrap();
+        let mut theta = 0.0;
+        c.bench_function(&format!("fu_mpc_update_n20_{name}"), |b| {
+            b.iter(|| {
+                // A moving motor angle, so warm starts differ between iterations.
+                theta += 0.1;
+                let input = ScanInput {
+                    motor: MotorState::new(theta, 1.0),
+                    reference: &refs,
+                    targets: &t,
+                    fisher: Some(&table),
+                };
+                black_box(mpc.command(black_box(&input)).unwrap())
+            });
         });
-    });
+    }
 }
 
 criterion_group!(benches, bench_fisher, bench_surrogates, bench_mpc);

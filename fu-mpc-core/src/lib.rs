@@ -31,6 +31,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod active_set;
 mod controller;
 mod error;
 mod fisher;
@@ -43,7 +44,7 @@ mod utility;
 pub use controller::{FixedSpeed, ScanCommand, ScanController, ScanInput, ScanStatus};
 pub use error::{CoreError, Result};
 pub use fisher::{FisherConfig, FisherTable};
-pub use mpc::{CostTerms, FuMpc, MpcConfig, MpcSolution};
+pub use mpc::{CostTerms, FuMpc, MpcConfig, MpcSolution, QpBackend};
 pub use predict::{PredictedStep, predict_into};
 pub use pwl::PeriodicPwl;
 pub use utility::{FrontierTarget, UtilityConfig, frontier_surrogates};

@@ -2,6 +2,7 @@
 
 use lidar_kinematics::{KinematicChain, MotorLimits, MotorModel};
 
+use crate::active_set::ActiveSet;
 use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
 use crate::error::invalid;
 use crate::qp::StepQp;
@@ -37,6 +38,20 @@ pub struct MpcConfig {
     pub iterations: usize,
     /// Weight ρ of the proximal term (ρ/2)‖u − ū‖² that keeps each step local; default 0.05.
     pub proximal: f64,
+    /// Which solver takes the QP steps; default [`QpBackend::Dedicated`].
+    pub backend: QpBackend,
+}
+
+/// The solver of the convex QP in each linearisation step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum QpBackend {
+    /// The dedicated primal active-set solver for this structure: H⁻¹ precomputed once,
+    /// warm-started from the current iterate, no allocation. Falls back to Clarabel if it
+    /// cannot finish.
+    #[default]
+    Dedicated,
+    /// Clarabel, the general interior-point reference.
+    Clarabel,
 }
 
 impl Default for MpcConfig {
@@ -57,6 +72,7 @@ impl Default for MpcConfig {
             utility: UtilityConfig::default(),
             iterations: 8,
             proximal: 0.05,
+            backend: QpBackend::Dedicated,
         }
     }
 }
@@ -138,7 +154,7 @@ pub struct MpcSolution {
 /// shifted previous solution, constant-speed candidates and cruise-then-stop candidates
 /// (dwells at the reachable angles), then repeats a convex QP in u
 /// (the linearised surrogate costs, the smoothness term, a proximal term, |u| ≤ u_max and
-/// ω_min ≤ ω_k ≤ ω_max) and a backtracking line search on the true surrogate cost. The
+/// ω_min ≤ ω_k ≤ ω_max; see [`QpBackend`]) and a backtracking line search on the true surrogate cost. The
 /// terms are evaluated at the predicted states θ_1..θ_N, the ones the controls move (θ_0 is
 /// fixed). Every sequence it considers satisfies (20)–(21), so the saturation of (11) stays
 /// inactive and θ is affine in u (when ω_0 itself is outside the limits, the prediction
@@ -170,6 +186,8 @@ pub struct FuMpc {
     surrogates: Vec<PeriodicPwl>,
     previous: Vec<f64>,
     solution: MpcSolution,
+    work: Work,
+    active: Option<ActiveSet>,
 }
 
 impl FuMpc {
@@ -193,6 +211,25 @@ impl FuMpc {
             name,
             surrogates: Vec::new(),
             previous: vec![0.0; n],
+            work: Work {
+                best: vec![0.0; n],
+                cand: vec![0.0; n],
+                trial: vec![0.0; n],
+                x: vec![0.0; n],
+                slopes: vec![0.0; n],
+                qp: StepQp {
+                    n,
+                    gamma: config.gamma,
+                    rho: config.proximal,
+                    q: vec![0.0; n],
+                    u_max: config.limits.u_max(),
+                    omega0: 0.0,
+                    dt: config.dt,
+                    w_lo: vec![config.limits.omega_min(); n],
+                    w_hi: vec![config.limits.omega_max(); n],
+                },
+            },
+            active: ActiveSet::new(n, config.gamma, config.proximal, config.dt),
             solution: MpcSolution {
                 controls: vec![0.0; n],
                 predicted: vec![PredictedStep::default(); n + 1],
@@ -380,100 +417,95 @@ impl FuMpc {
         let omega0 = input.motor.omega.clamp(l.omega_min(), l.omega_max());
         let fisher = input.fisher.map(|f| f.cost());
         self.build_surrogates(input)?;
-        // Warm starts: the shifted previous solution and constant-speed candidates.
-        let mut best = self.previous.clone();
-        best.rotate_left(1);
-        if let Some(last) = best.last_mut() {
-            *last = self.previous[n - 1];
-        }
-        self.make_feasible(omega0, &mut best);
-        let mut best_cost = self.cost(theta0, omega0, &best, fisher).total();
-        let mut cand = vec![0.0; n];
-        let consider = |this: &Self, cand: &mut [f64], best: &mut Vec<f64>, best_cost: &mut f64| {
-            this.make_feasible(omega0, cand);
-            let cc = this.cost(theta0, omega0, cand, fisher).total();
-            if cc < *best_cost {
-                *best_cost = cc;
-                best.copy_from_slice(cand);
+        let mut w = core::mem::take(&mut self.work);
+        // Warm starts: the shifted previous solution, constant-speed and cruise-then-stop
+        // sequences.
+        w.best.copy_from_slice(&self.previous);
+        w.best.rotate_left(1);
+        w.best[n - 1] = self.previous[n - 1];
+        self.make_feasible(omega0, &mut w.best);
+        let mut best_cost = self.cost(theta0, omega0, &w.best, fisher).total();
+        let mut consider = |this: &Self, w: &mut Work| {
+            this.make_feasible(omega0, &mut w.cand);
+            let cc = this.cost(theta0, omega0, &w.cand, fisher).total();
+            if cc < best_cost {
+                best_cost = cc;
+                w.best.copy_from_slice(&w.cand);
             }
         };
-        // Constant-speed candidates.
+        let fill = |cand: &mut [f64], cruise: f64, m: usize, stop: f64| {
+            let mut speed = omega0;
+            for (k, x) in cand.iter_mut().enumerate() {
+                let target = if k < m { cruise } else { stop };
+                *x = l.saturate_acceleration((target - speed) / c.dt);
+                speed += *x * c.dt;
+            }
+        };
         for target in [
             l.omega_min(),
             l.omega_max(),
             0.5 * (l.omega_min() + l.omega_max()),
             omega0,
         ] {
-            let mut w = omega0;
-            for x in cand.iter_mut() {
-                *x = l.saturate_acceleration((target - w) / c.dt);
-                w += *x * c.dt;
-            }
-            consider(self, &mut cand, &mut best, &mut best_cost);
+            fill(&mut w.cand, target, n, target);
+            consider(self, &mut w);
         }
-        // Cruise-then-stop candidates: cruise at ω0, ω_max or ω_min, then slow to the speed
-        // nearest zero from step m,
-        // so a dwell at any reachable angle is among the starts (the surrogates have many
-        // local minima; the linearised steps only refine).
+        // Cruise at ω0, ω_max or ω_min, then slow to the speed nearest zero from step m, so
+        // a dwell at any reachable angle is among the starts (the surrogates have many local
+        // minima; the linearised steps only refine).
         let stop = 0.0f64.clamp(l.omega_min(), l.omega_max());
         for cruise in [omega0, l.omega_max(), l.omega_min()] {
             for m in (0..n).step_by(2) {
-                let mut w = omega0;
-                for (k, x) in cand.iter_mut().enumerate() {
-                    let target = if k < m { cruise } else { stop };
-                    *x = l.saturate_acceleration((target - w) / c.dt);
-                    w += *x * c.dt;
-                }
-                consider(self, &mut cand, &mut best, &mut best_cost);
+                fill(&mut w.cand, cruise, m, stop);
+                consider(self, &mut w);
             }
         }
         self.solution.warm_start_cost = best_cost;
         // Sequential linearisation.
-        let mut u = best;
         let mut cost = best_cost;
         let mut status = ScanStatus::IterationLimit;
         let mut iterations = 0;
-        let mut s = vec![0.0; n];
         let dt2 = c.dt * c.dt;
-        let mut qp = StepQp {
-            n,
-            gamma: c.gamma,
-            rho: c.proximal,
-            q: vec![0.0; n],
-            u_max: l.u_max(),
-            omega0,
-            dt: c.dt,
-            w_lo: vec![l.omega_min(); n],
-            w_hi: vec![l.omega_max(); n],
-        };
-        let mut trial = vec![0.0; n];
+        w.qp.omega0 = omega0;
         for _ in 0..c.iterations {
             iterations += 1;
-            self.slopes(theta0, omega0, &u, fisher, &mut s);
+            self.slopes(theta0, omega0, &w.best, fisher, &mut w.slopes);
             // q_j = Σ_{k>j} s_k Δt² (k − j) − ρ ū_j: θ_k moves by Δt²(k − j) per unit of u_j.
-            let mut acc = 0.0;
-            let mut weighted = 0.0;
+            let (mut acc, mut weighted) = (0.0, 0.0);
             for j in (0..n).rev() {
-                // After this step: acc = Σ_{k ≥ j} s_k, weighted = Σ_{k ≥ j} s_k (k − j + 1).
-                acc += s[j];
+                acc += w.slopes[j];
                 weighted += acc;
-                qp.q[j] = dt2 * weighted - c.proximal * u[j];
+                w.qp.q[j] = dt2 * weighted - c.proximal * w.best[j];
             }
-            let Some(x) = qp.solve_clarabel() else {
+            // The QP step from the feasible current iterate.
+            w.x.copy_from_slice(&w.best);
+            let solved = match (c.backend, self.active.as_mut()) {
+                (QpBackend::Dedicated, Some(active)) if active.fits(&w.qp) => {
+                    active.solve(&w.qp, &mut w.x)
+                }
+                _ => false,
+            } || match w.qp.solve_clarabel() {
+                Some(x) => {
+                    w.x.copy_from_slice(&x);
+                    true
+                }
+                None => false,
+            };
+            if !solved {
                 status = ScanStatus::Fallback;
                 break;
-            };
+            }
             // Backtracking on the true surrogate cost.
             let mut t = 1.0;
             let mut accepted = false;
             for _ in 0..10 {
                 for j in 0..n {
-                    trial[j] = u[j] + t * (x[j] - u[j]);
+                    w.trial[j] = w.best[j] + t * (w.x[j] - w.best[j]);
                 }
-                self.make_feasible(omega0, &mut trial);
-                let tc = self.cost(theta0, omega0, &trial, fisher).total();
+                self.make_feasible(omega0, &mut w.trial);
+                let tc = self.cost(theta0, omega0, &w.trial, fisher).total();
                 if tc < cost - 1e-12 * (1.0 + cost.abs()) {
-                    u.copy_from_slice(&trial);
+                    w.best.copy_from_slice(&w.trial);
                     cost = tc;
                     accepted = true;
                     break;
@@ -485,22 +517,34 @@ impl FuMpc {
                 break;
             }
         }
-        self.solution.cost = self.cost(theta0, omega0, &u, fisher);
+        self.solution.cost = self.cost(theta0, omega0, &w.best, fisher);
         self.solution.iterations = iterations;
-        self.solution.controls.copy_from_slice(&u);
-        self.previous.copy_from_slice(&u);
+        self.solution.controls.copy_from_slice(&w.best);
+        self.previous.copy_from_slice(&w.best);
+        self.work = w;
         // The reported prediction comes from the motor model itself, eqs. (11)–(14).
         predict_into(
             &self.chain,
             &self.motor,
             input.motor,
-            &u,
+            &self.solution.controls,
             c.dt,
             input.reference,
             &mut self.solution.predicted,
         )?;
         Ok(status)
     }
+}
+
+/// Buffers of one update, kept between updates so a solve allocates nothing.
+#[derive(Debug, Clone, Default)]
+struct Work {
+    best: Vec<f64>,
+    cand: Vec<f64>,
+    trial: Vec<f64>,
+    x: Vec<f64>,
+    slopes: Vec<f64>,
+    qp: StepQp,
 }
 
 impl ScanController for FuMpc {

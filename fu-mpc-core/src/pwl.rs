@@ -77,13 +77,14 @@ impl PeriodicPwl {
     #[inline]
     pub fn eval(&self, theta: f64) -> (f64, f64) {
         let n = self.values.len();
-        let x = (theta * self.scale).rem_euclid(
-            // Knot counts are far below 2^53.
-            #[allow(clippy::cast_precision_loss)]
-            {
-                n as f64
-            },
-        );
+        // Knot counts are far below 2^53.
+        #[allow(clippy::cast_precision_loss)]
+        let nf = n as f64;
+        let mut x = theta * self.scale;
+        if !(0.0..nf).contains(&x) {
+            // Wrap into [0, n) without fmod (the hot path of the MPC).
+            x -= nf * (x / nf).floor();
+        }
         if !x.is_finite() {
             return (self.values[0], 0.0);
         }

@@ -7,7 +7,7 @@ use clarabel::solver::{
 
 /// min ½ uᵀ H u + qᵀ u  s.t.  lo ≤ u ≤ hi,  w_lo ≤ ω_0 + Δt·cumsum(u)_k ≤ w_hi (k = 1..N),
 /// with H = 2γ DᵀD + ρI (D the first-difference operator), the structure of (19)–(21).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct StepQp {
     pub(crate) n: usize,
     pub(crate) gamma: f64,
