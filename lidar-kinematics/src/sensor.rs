@@ -126,6 +126,10 @@ pub struct FieldOfView {
     elevation_max: f64,
     sin_el_min: f64,
     sin_el_max: f64,
+    /// Unit vector of the azimuth interval's centre and the cosine of its half width.
+    center_cos: f64,
+    center_sin: f64,
+    cos_half_width: f64,
 }
 
 impl FieldOfView {
@@ -160,13 +164,18 @@ impl FieldOfView {
                 "need -pi/2 <= elevation_min <= elevation_max <= pi/2",
             ));
         }
+        let azimuth_width = (azimuth_max - azimuth_min).min(TAU);
+        let center = azimuth_min + 0.5 * azimuth_width;
         Ok(Self {
             azimuth_min,
-            azimuth_width: (azimuth_max - azimuth_min).min(TAU),
+            azimuth_width,
             elevation_min,
             elevation_max,
             sin_el_min: elevation_min.sin(),
             sin_el_max: elevation_max.sin(),
+            center_cos: center.cos(),
+            center_sin: center.sin(),
+            cos_half_width: (0.5 * azimuth_width).cos(),
         })
     }
 
@@ -207,8 +216,14 @@ impl FieldOfView {
         if self.is_full_azimuth() {
             return true;
         }
-        let az = dir.y.atan2(dir.x);
-        (az - self.azimuth_min).rem_euclid(TAU) <= self.azimuth_width
+        let r = dir.x.hypot(dir.y);
+        if r == 0.0 {
+            // Straight up or down: azimuth 0 by convention, as atan2(0, 0).
+            return (-self.azimuth_min).rem_euclid(TAU) <= self.azimuth_width;
+        }
+        // The azimuth lies within half the width of the interval's centre: cos of the angle
+        // to the centre at least cos(half width), with no trigonometry per call.
+        dir.x * self.center_cos + dir.y * self.center_sin >= self.cos_half_width * r
     }
 }
 
@@ -496,6 +511,9 @@ impl BeamPattern {
             elevation_max: hi,
             sin_el_min: lo.sin(),
             sin_el_max: hi.sin(),
+            center_cos: -1.0,
+            center_sin: 0.0,
+            cos_half_width: -1.0,
         }
     }
 
@@ -808,6 +826,21 @@ mod tests {
     }
 
     proptest! {
+        #[test]
+        fn azimuth_test_matches_atan2(
+            az_min in -7.0f64..7.0, width in 0.0f64..6.3,
+            x in -1.0f64..1.0, y in -1.0f64..1.0, z in -0.2f64..0.2,
+        ) {
+            let fov = FieldOfView::try_new(az_min, az_min + width, -0.5, 0.5).unwrap();
+            let d = Vector3::new(x, y, z);
+            prop_assume!(x.hypot(y) > 1e-6 && d.z.abs() < 0.4 * d.norm());
+            let off = (y.atan2(x) - az_min).rem_euclid(TAU);
+            // Away from the interval's edges (rounding decides exactly on them).
+            // The cosine test resolves angles to about 1e-8 rad near a half width of 0 or π.
+            prop_assume!((off - width).abs() > 1e-6 && off > 1e-6 && (TAU - off) > 1e-6);
+            prop_assert_eq!(fov.contains(&d), width >= TAU || off <= width);
+        }
+
         /// The gate agrees with transforming the point by the chain and testing range and angles.
         #[test]
         fn gate_matches_definition(
