@@ -289,19 +289,14 @@ struct Pool<'a, F> {
     points: Vec<Point3<f64>>,
     fov: &'a F,
     config: &'a ViewpointConfig,
-    /// Sampled cells of cluster `i` seen from candidate `v`, when they reach r0.
-    passes: FxHashMap<(u32, u32), Option<usize>>,
+    /// Whether cluster `i` passes r0 from candidate `v`.
+    passes: FxHashMap<(u32, u32), bool>,
 }
 
 impl<F: FieldOfView> Pool<'_, F> {
-    /// Whether r(v) ≥ r0 for cluster `i` from candidate `v`. The samples are counted to the
-    /// end only while r0 is still reachable; a full count is kept for choosing representatives.
+    /// Whether r(v) ≥ r0 for cluster `i` from candidate `v`, counting the samples only until
+    /// the answer is known (memoised).
     fn passes(&mut self, i: usize, v: usize) -> bool {
-        self.count(i, v).is_some()
-    }
-
-    /// The sampled cells of cluster `i` seen from `v` if they reach r0, else `None`.
-    fn count(&mut self, i: usize, v: usize) -> Option<usize> {
         // Cluster and candidate counts fit u32.
         #[allow(clippy::cast_possible_truncation)]
         let key = (i as u32, v as u32);
@@ -322,7 +317,7 @@ impl<F: FieldOfView> Pool<'_, F> {
         let p = self.points[v];
         let (mut seen, mut left) = (0usize, n);
         for c in cells {
-            if seen + left < need {
+            if seen >= need || seen + left < need {
                 break;
             }
             left -= 1;
@@ -330,9 +325,9 @@ impl<F: FieldOfView> Pool<'_, F> {
                 seen += 1;
             }
         }
-        let out = (seen >= need).then_some(seen);
-        self.passes.insert(key, out);
-        out
+        let ok = seen >= need;
+        self.passes.insert(key, ok);
+        ok
     }
 
     /// Whether candidate `v` is close enough to cluster `i` to be in its visible region.
@@ -340,12 +335,16 @@ impl<F: FieldOfView> Pool<'_, F> {
         (self.points[v] - self.clusters[i].center()).norm() <= self.reach[i]
     }
 
-    /// Cells of cluster `i` seen from `v`: estimated from the samples (`v` must pass r0 for
-    /// `i`), or counted exactly.
+    /// Cells of cluster `i` seen from `v`: estimated from the samples, or counted exactly.
     fn seen(&mut self, i: usize, v: usize, exact: bool) -> f64 {
         if !exact {
-            let k = self.count(i, v).unwrap_or(0);
-            return ratio(k, self.samples[i].len()) * self.clusters[i].score();
+            let cells = &self.samples[i];
+            let p = self.points[v];
+            let k = cells
+                .iter()
+                .filter(|c| cell_visible(self.map, &p, **c, self.fov, self.config))
+                .count();
+            return ratio(k, cells.len()) * self.clusters[i].score();
         }
         let p = self.points[v];
         let seen = self.clusters[i]
