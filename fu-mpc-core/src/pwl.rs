@@ -64,6 +64,11 @@ impl PeriodicPwl {
         &self.values
     }
 
+    /// The knot values, for refilling a table in place (the crate keeps them finite).
+    pub(crate) fn values_mut(&mut self) -> &mut [f64] {
+        &mut self.values
+    }
+
     /// The angle of knot `c` \[rad\].
     pub fn knot(&self, c: usize) -> f64 {
         // Knot indices are far below 2^53.

@@ -65,7 +65,8 @@ impl UtilityConfig {
 }
 
 /// Builds the per-step surrogates J_k(θ), k = 0..poses.len(), on `knots` uniformly spaced
-/// motor angles, into `out` (resized).
+/// motor angles, into `out` (refilled in place when its shape already fits, so a controller
+/// that calls this every cycle does not allocate).
 ///
 /// At step k a target is visible when d_{k,i} = ‖p_k − c_i‖ passes the distance gate and the
 /// angle between the scan direction d_k(θ) of (14) and c_i − p_k passes the angular gate;
@@ -77,7 +78,8 @@ impl UtilityConfig {
 /// not depend on the scale of the scores.
 ///
 /// # Errors
-/// An invalid `config`, no knots, a NaN or infinite target, or a negative score.
+/// An invalid `config`, no knots, a NaN or infinite target or pose, a negative score, or
+/// scores so large that their sum overflows. On error `out` may hold partial tables.
 pub fn frontier_surrogates(
     chain: &KinematicChain,
     poses: &[Isometry3<f64>],
@@ -108,16 +110,22 @@ pub fn frontier_surrogates(
     let motor_base = chain.extrinsics().motor_base_in_body().rotation;
     let two_s2 = 2.0 * config.sigma * config.sigma;
     let cos_gate = config.half_angle.cos();
-    out.clear();
-    let mut values = vec![0.0; knots];
-    for pose in poses {
+    // Reuse the previous tables when their shape matches: no allocation per update.
+    if out.len() != poses.len() || out.iter().any(|f| f.len() != knots) {
+        out.clear();
+        for _ in poses {
+            out.push(PeriodicPwl::new(vec![0.0; knots])?);
+        }
+    }
+    for (pose, table) in poses.iter().zip(out.iter_mut()) {
+        let values = table.values_mut();
         if !pose.translation.vector.iter().all(|v| v.is_finite()) {
             return Err(CoreError::NonFinite {
                 what: "reference pose",
             });
         }
         values.fill(0.0);
-        let to_motor = (pose.rotation * motor_base).inverse();
+        let to_motor = (pose.rotation * motor_base).inverse().to_rotation_matrix();
         let p = Point3::from(pose.translation.vector);
         let mut total = 0.0;
         for t in targets {
@@ -136,7 +144,7 @@ pub fn frontier_surrogates(
             // Direction in the motor base frame: d_k(θ) = (cos θ, sin θ, 0) there, so
             // cos∠ = ρ cos(θ − φ) with ρ the length of the in-plane part.
             let u = to_motor * (v / d);
-            let rho = u.x.hypot(u.y);
+            let rho = (u.x * u.x + u.y * u.y).sqrt();
             if rho < cos_gate || rho == 0.0 {
                 continue;
             }
@@ -159,13 +167,21 @@ pub fn frontier_surrogates(
                 // Wrap the knot index into [0, knots).
                 #[allow(clippy::cast_possible_truncation)]
                 let c = (k as i64).rem_euclid(knots as i64) as usize;
-                values[c] += r * weight(k * h, phi, delta, h);
+                // |k h − φ| ≤ δ + h/2 < π here, so the offset needs no wrapping.
+                let off = (k * h - phi).abs();
+                values[c] += r * (0.5 + (delta - off) / h).clamp(0.0, 1.0);
                 k += 1.0;
             }
         }
+        if !total.is_finite() {
+            return Err(CoreError::NonFinite {
+                what: "total frontier reward",
+            });
+        }
         let norm = if total > 0.0 { 1.0 / total } else { 0.0 };
-        let knot_values = values.iter().map(|seen| (total - seen) * norm).collect(); // eq. (18)
-        out.push(PeriodicPwl::new(knot_values)?);
+        for x in values.iter_mut() {
+            *x = (total - *x) * norm; // eq. (18)
+        }
     }
     Ok(())
 }
