@@ -1,10 +1,12 @@
 //! The simulator the FU-MPC explorer flies in, and the metrics of the paper's evaluation.
 //!
 //! This crate is the project's test bench, not a library to publish: it may read and write
-//! files. Today it holds the trajectory metrics ([`metrics`]) and the world queries over
-//! parry3d ([`world`]); the scenes, sensors, odometry and the explorer follow.
+//! files. Today it holds the trajectory metrics ([`metrics`]), the world queries over parry3d
+//! ([`world`]) and PCD scene loading ([`cloud_io`]); the scene generators, sensors,
+//! odometry and the explorer follow.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod cloud_io;
 pub mod metrics;
 pub mod world;
