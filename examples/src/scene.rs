@@ -1,0 +1,333 @@
+//! Scenes the simulator flies in: solid boxes inside bounds, a start position, and the
+//! ground-truth explorable free space for the coverage metric.
+
+use std::collections::VecDeque;
+
+use nalgebra::{Point3, Vector3};
+
+use crate::world::{World, WorldError};
+
+/// A solid box by its min and max corners \[m\].
+pub type Aabb = (Point3<f64>, Point3<f64>);
+
+/// A scene of solid boxes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Short name, e.g. `"maze"`.
+    pub name: String,
+    /// Lower corner of the explorable region \[m\].
+    pub min: Point3<f64>,
+    /// Upper corner of the explorable region \[m\].
+    pub max: Point3<f64>,
+    /// Where the UAV starts \[m\].
+    pub start: Point3<f64>,
+    /// The solid boxes.
+    pub boxes: Vec<Aabb>,
+}
+
+/// A small deterministic pseudo-random generator (PCG-style LCG) for scene layouts.
+#[derive(Debug, Clone)]
+struct Rng(u64);
+
+impl Rng {
+    fn new(seed: u64) -> Self {
+        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xD1B5_4A32_D192_ED03)
+    }
+
+    /// Uniform in [0, 1).
+    fn unit(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        // The top 53 bits form an exact f64 mantissa.
+        #[allow(clippy::cast_precision_loss)]
+        let v = (self.0 >> 11) as f64 / (1u64 << 53) as f64;
+        v
+    }
+
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+}
+
+fn aabb(x0: f64, y0: f64, z0: f64, x1: f64, y1: f64, z1: f64) -> Aabb {
+    (Point3::new(x0, y0, z0), Point3::new(x1, y1, z1))
+}
+
+/// Floor, ceiling and four walls around `[0, sx] × [0, sy] × [0, sz]`, 0.2 m thick, outside.
+fn shell(sx: f64, sy: f64, sz: f64) -> Vec<Aabb> {
+    let t = 0.2;
+    vec![
+        aabb(-t, -t, -t, sx + t, sy + t, 0.0),
+        aabb(-t, -t, sz, sx + t, sy + t, sz + t),
+        aabb(-t, -t, 0.0, 0.0, sy + t, sz),
+        aabb(sx, -t, 0.0, sx + t, sy + t, sz),
+        aabb(0.0, -t, 0.0, sx, 0.0, sz),
+        aabb(0.0, sy, 0.0, sx, sy + t, sz),
+    ]
+}
+
+impl Scene {
+    /// A small two-room scene for tests: 12 × 8 × 3 m, a dividing wall with a door, a pillar
+    /// and a table-like block; `seed` moves the door and the pillar.
+    pub fn small(seed: u64) -> Self {
+        let mut r = Rng::new(seed);
+        let mut boxes = shell(12.0, 8.0, 3.0);
+        let door = r.range(1.5, 5.5);
+        boxes.push(aabb(5.9, 0.0, 0.0, 6.1, door, 3.0));
+        boxes.push(aabb(5.9, door + 1.2, 0.0, 6.1, 8.0, 3.0));
+        let (px, py) = (r.range(8.0, 10.5), r.range(1.5, 6.0));
+        boxes.push(aabb(px, py, 0.0, px + 0.5, py + 0.5, 3.0));
+        boxes.push(aabb(2.0, 5.5, 0.0, 3.5, 6.5, 0.8));
+        Self {
+            name: "small".into(),
+            min: Point3::origin(),
+            max: Point3::new(12.0, 8.0, 3.0),
+            start: Point3::new(1.5, 1.5, 1.2),
+            boxes,
+        }
+    }
+
+    /// The Spatial Maze of the paper's Section VI at its size, 119 × 20 × 8 m: two levels
+    /// separated by a slab at 4 m with openings (vertically separated passages), barriers
+    /// across the maze with gaps on each level whose heights vary, and stair ramps between
+    /// the levels. Seeded: the same seed gives the same maze.
+    pub fn maze(seed: u64) -> Self {
+        let (sx, sy, sz) = (119.0, 20.0, 8.0);
+        let mut r = Rng::new(seed);
+        let mut boxes = shell(sx, sy, sz);
+        // The slab between the levels, with an opening every ~20 m.
+        let slab = (3.8, 4.2);
+        let mut x = 0.0;
+        while x < sx {
+            let len = r.range(12.0, 20.0).min(sx - x);
+            let hole = r.range(2.5, 4.0).min(len);
+            let hy = r.range(1.0, sy - 5.0);
+            // The slab piece [x, x + len − hole], then a hole of width `hole` spanning
+            // part of y.
+            boxes.push(aabb(x, 0.0, slab.0, x + len - hole, sy, slab.1));
+            boxes.push(aabb(x + len - hole, 0.0, slab.0, x + len, hy, slab.1));
+            boxes.push(aabb(x + len - hole, hy + 4.0, slab.0, x + len, sy, slab.1));
+            x += len;
+        }
+        // Barriers across y every 6–10 m, one per level, with a gap and varying height.
+        let mut x = 6.0;
+        while x < sx - 4.0 {
+            for (z0, z1) in [(0.0, slab.0), (slab.1, sz)] {
+                let gap = r.range(1.6, 3.0);
+                let gy = r.range(0.5, sy - gap - 0.5);
+                let top = z0 + (z1 - z0) * r.range(0.55, 1.0);
+                boxes.push(aabb(x, 0.0, z0, x + 0.3, gy, top));
+                boxes.push(aabb(x, gy + gap, z0, x + 0.3, sy, top));
+            }
+            x += r.range(6.0, 10.0);
+        }
+        // Stair ramps up to the slab at three places.
+        for k in 0..3 {
+            let x0 = 20.0 + 35.0 * f64::from(k) + r.range(-3.0, 3.0);
+            let y0 = r.range(1.0, sy - 3.0);
+            for step in 0..8 {
+                let h = 0.5 * f64::from(step + 1);
+                let xs = x0 + 0.6 * f64::from(step);
+                boxes.push(aabb(xs, y0, 0.0, xs + 0.6, y0 + 2.0, h.min(slab.0)));
+            }
+        }
+        Self {
+            name: "maze".into(),
+            min: Point3::origin(),
+            max: Point3::new(sx, sy, sz),
+            start: Point3::new(2.0, sy / 2.0, 1.5),
+            boxes,
+        }
+    }
+
+    /// The world of this scene.
+    ///
+    /// # Errors
+    /// As [`World::from_boxes`].
+    pub fn world(&self) -> Result<World, WorldError> {
+        World::from_boxes(&self.boxes)
+    }
+
+    /// The ground-truth explorable free space at `resolution` \[m\]: the cells of the bounds
+    /// that no box touches and that are 6-connected to the start's cell.
+    pub fn explorable(&self, resolution: f64) -> Explorable {
+        let ext = self.max - self.min;
+        let dims = ext.map(|e| (e / resolution).ceil().max(1.0));
+        // Scene extents are metres over centimetres: the counts fit usize.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let [nx, ny, nz] = [dims.x as usize, dims.y as usize, dims.z as usize];
+        let mut solid = vec![false; nx * ny * nz];
+        let at = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
+        let cell = |v: f64, k: usize, n: usize| {
+            let c = ((v - self.min[k]) / resolution).floor();
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let c = c.clamp(0.0, (n - 1) as f64) as usize;
+            c
+        };
+        for (lo, hi) in &self.boxes {
+            if (0..3).any(|k| hi[k] <= self.min[k] || lo[k] >= self.max[k]) {
+                continue;
+            }
+            // Cells whose open interior meets the box.
+            let r = |k: usize, n: usize| {
+                let a = cell(lo[k] + 1e-9, k, n);
+                let b = cell(hi[k] - 1e-9, k, n);
+                a..=b
+            };
+            for z in r(2, nz) {
+                for y in r(1, ny) {
+                    for x in r(0, nx) {
+                        solid[at(x, y, z)] = true;
+                    }
+                }
+            }
+        }
+        let mut reached = vec![false; nx * ny * nz];
+        let s = (
+            cell(self.start.x, 0, nx),
+            cell(self.start.y, 1, ny),
+            cell(self.start.z, 2, nz),
+        );
+        let mut queue = VecDeque::new();
+        if !solid[at(s.0, s.1, s.2)] {
+            reached[at(s.0, s.1, s.2)] = true;
+            queue.push_back(s);
+        }
+        let mut count = 0usize;
+        while let Some((x, y, z)) = queue.pop_front() {
+            count += 1;
+            let mut visit = |x: usize, y: usize, z: usize| {
+                let i = at(x, y, z);
+                if !solid[i] && !reached[i] {
+                    reached[i] = true;
+                    queue.push_back((x, y, z));
+                }
+            };
+            if x > 0 {
+                visit(x - 1, y, z);
+            }
+            if x + 1 < nx {
+                visit(x + 1, y, z);
+            }
+            if y > 0 {
+                visit(x, y - 1, z);
+            }
+            if y + 1 < ny {
+                visit(x, y + 1, z);
+            }
+            if z > 0 {
+                visit(x, y, z - 1);
+            }
+            if z + 1 < nz {
+                visit(x, y, z + 1);
+            }
+        }
+        Explorable {
+            resolution,
+            dims: [nx, ny, nz],
+            origin: self.min,
+            reached,
+            count,
+        }
+    }
+}
+
+/// The explorable free cells of a scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Explorable {
+    /// Cell edge \[m\].
+    pub resolution: f64,
+    /// Cells along x, y, z.
+    pub dims: [usize; 3],
+    /// Lower corner of cell (0, 0, 0) \[m\].
+    pub origin: Point3<f64>,
+    reached: Vec<bool>,
+    /// Number of explorable cells.
+    pub count: usize,
+}
+
+impl Explorable {
+    /// Whether the cell containing `p` is explorable.
+    pub fn contains(&self, p: &Point3<f64>) -> bool {
+        let g: Vector3<f64> = (p - self.origin) / self.resolution;
+        #[allow(clippy::cast_precision_loss)]
+        if (0..3).any(|k| g[k].is_nan() || g[k] < 0.0 || g[k] >= self.dims[k] as f64) {
+            return false;
+        }
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let (x, y, z) = (g.x as usize, g.y as usize, g.z as usize);
+        self.reached[x + self.dims[0] * (y + self.dims[1] * z)]
+    }
+
+    /// Explorable volume \[m³\].
+    pub fn volume(&self) -> f64 {
+        #[allow(clippy::cast_precision_loss)]
+        let n = self.count as f64;
+        n * self.resolution.powi(3)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scenes_are_deterministic_and_the_start_is_free() {
+        for s in [Scene::small(1), Scene::maze(7)] {
+            let again = if s.name == "small" {
+                Scene::small(1)
+            } else {
+                Scene::maze(7)
+            };
+            assert_eq!(s, again);
+            let w = s.world().unwrap();
+            assert!(w.distance(&s.start) > 0.5, "{}", s.name);
+        }
+        assert_ne!(Scene::maze(1), Scene::maze(2));
+    }
+
+    #[test]
+    fn both_maze_levels_are_explorable_from_the_start() {
+        let s = Scene::maze(3);
+        let e = s.explorable(0.5);
+        // The upper level is reached through the ramps and openings.
+        let upper = (0..40).any(|i| e.contains(&Point3::new(3.0 * f64::from(i) + 1.0, 10.0, 6.0)));
+        assert!(upper);
+        assert!(e.contains(&s.start));
+        // Most of the volume is explorable; none of it is inside a box.
+        let total = 119.0 * 20.0 * 8.0;
+        assert!(
+            e.volume() > 0.5 * total && e.volume() < total,
+            "{}",
+            e.volume()
+        );
+        let w = s.world().unwrap();
+        for i in 0..200 {
+            let p = Point3::new(
+                0.59 * f64::from(i) + 0.3,
+                (f64::from(i) * 0.37) % 20.0,
+                (f64::from(i) * 0.23) % 8.0,
+            );
+            if e.contains(&p) {
+                assert!(w.distance(&p) > 0.0, "{p}");
+            }
+        }
+    }
+
+    #[test]
+    fn small_scene_rooms_connect_through_the_door() {
+        let s = Scene::small(4);
+        let e = s.explorable(0.2);
+        assert!(e.contains(&Point3::new(10.0, 0.5, 1.5)));
+        // A sealed scene (door closed) keeps the second room out.
+        let mut sealed = s;
+        sealed
+            .boxes
+            .push((Point3::new(5.9, 0.0, 0.0), Point3::new(6.1, 8.0, 3.0)));
+        let e2 = sealed.explorable(0.2);
+        assert!(!e2.contains(&Point3::new(10.0, 0.5, 1.5)));
+        assert!(e2.count < e.count);
+    }
+}
