@@ -15,13 +15,13 @@ use nalgebra::Vector3;
 fn bench_rays(c: &mut Criterion) {
     let scene = Scene::maze(1);
     let world = scene.world().unwrap();
-    let n = 20_000;
+    let n = 20_000u32;
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     let dirs: Vec<Vector3<f64>> = (0..n)
         .map(|i| {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let z = 1.0 - 2.0 * (f64::from(i) + 0.5) / f64::from(n);
             let r = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
+            let a = golden * f64::from(i);
             Vector3::new(r * a.cos(), r * a.sin(), z)
         })
         .collect();
