@@ -3,11 +3,13 @@
 //! This crate is the project's test bench, not a library to publish: it may read and write
 //! files. Today it holds the trajectory metrics ([`metrics`]), the world queries over parry3d
 //! ([`world`]), PCD scene loading ([`cloud_io`]) and generated scenes with their explorable
-//! space ([`scene`]); the sensors, odometry and the explorer follow.
+//! space ([`scene`]), and the simulated LiDAR ([`lidar`]); the UAV, IMU, odometry and the
+//! explorer follow.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 pub mod cloud_io;
+pub mod lidar;
 pub mod metrics;
 pub mod scene;
 pub mod world;
