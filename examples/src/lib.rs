@@ -3,8 +3,8 @@
 //! This crate is the project's test bench, not a library to publish: it may read and write
 //! files. Today it holds the trajectory metrics ([`metrics`]), the world queries over parry3d
 //! ([`world`]), PCD scene loading ([`cloud_io`]) and generated scenes with their explorable
-//! space ([`scene`]), and the simulated LiDAR ([`lidar`]); the UAV, IMU, odometry and the
-//! explorer follow.
+//! space ([`scene`]), the simulated LiDAR ([`lidar`]), and the UAV's flat attitude and IMU
+//! ([`uav`]); the odometry and the explorer follow.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
@@ -12,4 +12,5 @@ pub mod cloud_io;
 pub mod lidar;
 pub mod metrics;
 pub mod scene;
+pub mod uav;
 pub mod world;
