@@ -1,4 +1,4 @@
-//! Reading point-cloud scenes from PCD files (with `pcd-rs`).
+//! Reading point-cloud scenes from PCD files (with `pcd-rs`) and PLY files (with `ply-rs-bw`).
 
 use std::io::BufRead;
 use std::path::Path;
@@ -96,6 +96,64 @@ pub fn read_pcd(reader: impl BufRead) -> Result<Vec<Point3<f64>>, CloudError> {
     Ok(out)
 }
 
+/// A scalar PLY property as `f64`.
+fn ply_scalar(p: &ply_rs_bw::ply::Property) -> Option<f64> {
+    use ply_rs_bw::ply::Property as P;
+    Some(match p {
+        P::Char(v) => f64::from(*v),
+        P::UChar(v) => f64::from(*v),
+        P::Short(v) => f64::from(*v),
+        P::UShort(v) => f64::from(*v),
+        P::Int(v) => f64::from(*v),
+        P::UInt(v) => f64::from(*v),
+        P::Float(v) => f64::from(*v),
+        P::Double(v) => *v,
+        _ => return None,
+    })
+}
+
+/// Reads the `x`, `y`, `z` of every `vertex` of a PLY stream (ascii, binary little or big
+/// endian). Vertices with a NaN coordinate are dropped.
+///
+/// # Errors
+/// [`CloudError::Malformed`] for a bad header or payload (including a truncated one),
+/// [`CloudError::MissingField`] without a `vertex` element or one of its coordinates.
+pub fn read_ply(mut reader: impl std::io::Read) -> Result<Vec<Point3<f64>>, CloudError> {
+    let parser = ply_rs_bw::parser::Parser::<ply_rs_bw::ply::DefaultElement>::new();
+    let ply = parser
+        .read_ply(&mut reader)
+        .map_err(|e| CloudError::Malformed(e.to_string()))?;
+    let vertices = ply
+        .payload
+        .get("vertex")
+        .ok_or(CloudError::MissingField("vertex"))?;
+    let mut out = Vec::with_capacity(vertices.len());
+    for v in vertices {
+        let get = |name: &'static str| {
+            v.get(name)
+                .and_then(ply_scalar)
+                .ok_or(CloudError::MissingField(name))
+        };
+        let (x, y, z) = (get("x")?, get("y")?, get("z")?);
+        if x.is_finite() && y.is_finite() && z.is_finite() {
+            out.push(Point3::new(x, y, z));
+        }
+    }
+    Ok(out)
+}
+
+/// Reads a PLY file (see [`read_ply`]).
+///
+/// # Errors
+/// [`CloudError::Open`] if the file cannot be opened, otherwise as [`read_ply`].
+pub fn load_ply(path: &Path) -> Result<Vec<Point3<f64>>, CloudError> {
+    let file = std::fs::File::open(path).map_err(|source| CloudError::Open {
+        path: path.display().to_string(),
+        source,
+    })?;
+    read_ply(std::io::BufReader::new(file))
+}
+
 /// Reads a PCD file (see [`read_pcd`]).
 ///
 /// # Errors
@@ -155,6 +213,31 @@ mod tests {
         let mut cut = binary(&pts, 2);
         cut.truncate(cut.len() - 6);
         assert!(read_pcd(&cut[..]).is_err());
+    }
+
+    #[test]
+    fn ply_ascii_and_binary() {
+        let ascii = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty double z\nend_header\n1 2 3\n4 5 6\n";
+        assert_eq!(
+            read_ply(ascii.as_bytes()).unwrap(),
+            vec![Point3::new(1.0, 2.0, 3.0), Point3::new(4.0, 5.0, 6.0)]
+        );
+        let mut bin = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+        for v in [1.5f32, -2.0, 3.25, 0.0, 1.0, 2.0] {
+            bin.extend_from_slice(&v.to_le_bytes());
+        }
+        assert_eq!(read_ply(&bin[..]).unwrap()[0], Point3::new(1.5, -2.0, 3.25));
+        // Truncated payload, bad header, no vertices.
+        bin.truncate(bin.len() - 5);
+        assert!(read_ply(&bin[..]).is_err());
+        assert!(read_ply(&b"plx\nformat ascii 1.0\n"[..]).is_err());
+        let faces = "ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n";
+        assert!(matches!(
+            read_ply(faces.as_bytes()),
+            Err(CloudError::MissingField("vertex"))
+        ));
+        let short = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
+        assert!(read_ply(short.as_bytes()).is_err());
     }
 
     #[test]
