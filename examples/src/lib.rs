@@ -4,13 +4,15 @@
 //! files. Today it holds the trajectory metrics ([`metrics`]), the world queries over parry3d
 //! ([`world`]), PCD scene loading ([`cloud_io`]) and generated scenes with their explorable
 //! space ([`scene`]), the simulated LiDAR ([`lidar`]), and the UAV's flat attitude and IMU
-//! ([`uav`]); the odometry and the explorer follow.
+//! ([`uav`]), and point-to-plane registration for the odometry ([`registration`]); the
+//! odometry loop and the explorer follow.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 pub mod cloud_io;
 pub mod lidar;
 pub mod metrics;
+pub mod registration;
 pub mod scene;
 pub mod uav;
 pub mod world;
