@@ -55,6 +55,9 @@ pub struct Registration {
     /// Eigenvalues of JᵀJ in the last iteration, increasing: a small one flags a direction
     /// the geometry does not constrain (the corridor degeneracy).
     pub information: Vector6<f64>,
+    /// The unit direction ξ = [ω; v] of the smallest eigenvalue: the motion the scan
+    /// constrains least.
+    pub weakest: Vector6<f64>,
 }
 
 /// A map of world points for registration.
@@ -147,6 +150,7 @@ impl PlaneMap {
             matched: 0,
             iterations: 0,
             information: Vector6::zeros(),
+            weakest: Vector6::zeros(),
         };
         for it in 0..cfg.iterations {
             let mut h = Matrix6::zeros();
@@ -172,10 +176,11 @@ impl PlaneMap {
             }
             out.iterations = it + 1;
             out.matched = matched;
-            out.information = SymmetricEigen::new(h).eigenvalues;
-            let mut ev: Vec<f64> = out.information.iter().copied().collect();
-            ev.sort_by(f64::total_cmp);
-            out.information = Vector6::from_row_slice(&ev);
+            let eig = SymmetricEigen::new(h);
+            let mut order = [0usize, 1, 2, 3, 4, 5];
+            order.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
+            out.information = Vector6::from_fn(|i, _| eig.eigenvalues[order[i]]);
+            out.weakest = eig.eigenvectors.column(order[0]).into_owned();
             if matched < 6 {
                 break;
             }
@@ -256,6 +261,41 @@ mod tests {
         );
         assert!(r.matched > 1000);
         assert!(r.information[0] > 0.0);
+    }
+
+    #[test]
+    fn a_long_corridor_leaves_its_axis_unconstrained() {
+        // A 60 m corridor along x, 3 m wide and high, closed at both ends far away.
+        let corridor = Scene {
+            name: "corridor".into(),
+            min: Point3::new(0.0, 0.0, 0.0),
+            max: Point3::new(60.0, 3.0, 3.0),
+            start: Point3::new(30.0, 1.5, 1.5),
+            boxes: vec![
+                (Point3::new(-1.0, -1.0, -1.0), Point3::new(61.0, 4.0, 0.0)),
+                (Point3::new(-1.0, -1.0, 3.0), Point3::new(61.0, 4.0, 4.0)),
+                (Point3::new(-1.0, -1.0, -1.0), Point3::new(61.0, 0.0, 4.0)),
+                (Point3::new(-1.0, 3.0, -1.0), Point3::new(61.0, 4.0, 4.0)),
+            ],
+        };
+        let pose = Isometry3::translation(30.0, 1.5, 1.5);
+        let map_pts: Vec<_> = scan(&corridor, &pose, 12_000)
+            .iter()
+            .map(|q| pose * q)
+            .collect();
+        let map = PlaneMap::new(&map_pts);
+        let r = map.register(
+            &scan(&corridor, &pose, 3_000),
+            &pose,
+            &RegistrationConfig::default(),
+        );
+        // The weakest direction is a translation along the corridor.
+        assert!(r.weakest[3].abs() > 0.99, "{:?}", r.weakest);
+        assert!(
+            r.information[0] < 1e-6 * r.information[1],
+            "{:?}",
+            r.information
+        );
     }
 
     #[test]
