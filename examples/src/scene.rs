@@ -142,6 +142,78 @@ impl Scene {
         }
     }
 
+    /// The Sinkhole of the paper's Section VI at its size, 70 × 45 × 13.5 m: flat ground at
+    /// 9 m around an open pit down to 0.5 m whose walls are irregular, 1 m layers of random
+    /// extent (a layer narrower than the one below is an overhang). The start is above the
+    /// ground at one end. Seeded.
+    pub fn sinkhole(seed: u64) -> Self {
+        let (sx, sy, sz) = (70.0, 45.0, 13.5);
+        let ground = 9.0;
+        let mut r = Rng::new(seed);
+        let mut boxes = shell(sx, sy, sz);
+        // The pit's floor.
+        boxes.push(aabb(0.0, 0.0, 0.0, sx, sy, 0.5));
+        let (cx, cy) = (sx / 2.0, sy / 2.0);
+        let mut z: f64 = 0.5;
+        while z < ground {
+            let top = (z + 1.0).min(ground);
+            // The hole of this layer: a rectangle around the centre with random extents.
+            let (x0, x1) = (cx - r.range(12.0, 22.0), cx + r.range(12.0, 22.0));
+            let (y0, y1) = (cy - r.range(8.0, 15.0), cy + r.range(8.0, 15.0));
+            boxes.push(aabb(0.0, 0.0, z, x0, sy, top));
+            boxes.push(aabb(x1, 0.0, z, sx, sy, top));
+            boxes.push(aabb(x0, 0.0, z, x1, y0, top));
+            boxes.push(aabb(x0, y1, z, x1, sy, top));
+            z = top;
+        }
+        Self {
+            name: "sinkhole".into(),
+            min: Point3::origin(),
+            max: Point3::new(sx, sy, sz),
+            start: Point3::new(3.0, cy, 11.0),
+            boxes,
+        }
+    }
+
+    /// The Lava Tube of the paper's Section VI at its size, 315 × 53.5 × 27 m: a long tunnel
+    /// that winds in y and z through solid rock, its width (6–12 m) and height (5–10 m)
+    /// changing every 5 m slice, smoothly. The start is inside the tube at one end. Seeded.
+    pub fn lava_tube(seed: u64) -> Self {
+        let (sx, sy, sz) = (315.0, 53.5, 27.0);
+        let mut r = Rng::new(seed);
+        let mut boxes = shell(sx, sy, sz);
+        let slice = 5.0;
+        let (mut yc, mut zc) = (sy / 2.0, sz / 2.0);
+        let (mut w, mut h) = (9.0f64, 7.0f64);
+        let mut start = Point3::new(2.5, yc, zc);
+        let mut x = 0.0;
+        let mut first = true;
+        while x < sx {
+            let x1 = (x + slice).min(sx);
+            yc = (yc + r.range(-1.5, 1.5)).clamp(8.0, sy - 8.0);
+            zc = (zc + r.range(-0.8, 0.8)).clamp(6.0, sz - 6.0);
+            w = (w + r.range(-1.0, 1.0)).clamp(6.0, 12.0);
+            h = (h + r.range(-0.8, 0.8)).clamp(5.0, 10.0);
+            let (y0, y1, z0, z1) = (yc - w / 2.0, yc + w / 2.0, zc - h / 2.0, zc + h / 2.0);
+            boxes.push(aabb(x, 0.0, 0.0, x1, sy, z0));
+            boxes.push(aabb(x, 0.0, z1, x1, sy, sz));
+            boxes.push(aabb(x, 0.0, z0, x1, y0, z1));
+            boxes.push(aabb(x, y1, z0, x1, sy, z1));
+            if first {
+                start = Point3::new(2.5, yc, zc);
+                first = false;
+            }
+            x = x1;
+        }
+        Self {
+            name: "lavatube".into(),
+            min: Point3::origin(),
+            max: Point3::new(sx, sy, sz),
+            start,
+            boxes,
+        }
+    }
+
     /// The world of this scene.
     ///
     /// # Errors
@@ -314,6 +386,28 @@ mod tests {
                 assert!(w.distance(&p) > 0.0, "{p}");
             }
         }
+    }
+
+    #[test]
+    fn the_sinkhole_pit_and_the_far_end_of_the_tube_are_reachable() {
+        let s = Scene::sinkhole(5);
+        assert!(s.world().unwrap().distance(&s.start) > 0.5);
+        let e = s.explorable(0.5);
+        // The bottom of the pit, below the ground level.
+        assert!(e.contains(&Point3::new(35.0, 22.5, 1.0)));
+        // Not inside the rock beside the pit.
+        assert!(!e.contains(&Point3::new(2.0, 2.0, 4.0)));
+        let t = Scene::lava_tube(5);
+        assert!(t.world().unwrap().distance(&t.start) > 1.0);
+        let e = t.explorable(0.5);
+        let far = (0..54)
+            .flat_map(|j| {
+                (0..27).map(move |k| Point3::new(312.0, f64::from(j) + 0.25, f64::from(k) + 0.25))
+            })
+            .any(|p| e.contains(&p));
+        assert!(far, "the far end of the tube is reachable");
+        // The tube is a small part of the rock.
+        assert!(e.volume() < 0.3 * 315.0 * 53.5 * 27.0, "{}", e.volume());
     }
 
     #[test]
