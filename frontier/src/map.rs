@@ -531,29 +531,14 @@ impl VoxelMap {
 
     /// Updates every cell from `origin` to `end` as free, unless this frame updated it already.
     fn walk_free(&mut self, origin: &Point3<f64>, end: &Point3<f64>, out: &mut FrameUpdate) {
-        let mut w = Walk::new(&self.grid, origin, end);
-        let [bx, by, _] = self.block_dims.map(|v| v as usize);
-        let stride = [1, bx, bx * by];
-        let mut dir = self.directory_index(w.cell());
-        let mut b = self.frame_block(dir);
-        self.mark_and_apply(b, w.cell(), false, out);
-        // A step leaves the block when the coordinate enters the far side of the next one.
-        let wrap = w.step.map(|s| if s > 0 { 0 } else { BLOCK_MASK });
-        while let Some(k) = w.advance() {
-            let coord = match k {
-                0 => w.x,
-                1 => w.y,
-                _ => w.z,
-            };
-            if coord & BLOCK_MASK == wrap[k] {
-                dir = if w.step[k] > 0 {
-                    dir + stride[k]
-                } else {
-                    dir - stride[k]
-                };
-                b = self.frame_block(dir);
+        let mut w = BlockWalk::new(self, origin, end);
+        let mut b = self.frame_block(w.dir);
+        self.mark_and_apply(b, w.walk.cell(), false, out);
+        while let Some(entered) = w.advance() {
+            if entered {
+                b = self.frame_block(w.dir);
             }
-            self.mark_and_apply(b, w.cell(), false, out);
+            self.mark_and_apply(b, w.walk.cell(), false, out);
         }
     }
 
@@ -600,32 +585,18 @@ impl VoxelMap {
         unknown_occludes: bool,
     ) -> bool {
         let to = self.grid.center(target);
-        let mut w = Walk::new(&self.grid, from, &to);
-        let [bx, by, _] = self.block_dims.map(|v| v as usize);
-        let stride = [1, bx, bx * by];
-        let mut dir = self.directory_index(w.cell());
+        let mut w = BlockWalk::new(self, from, &to);
         let block = |dir: usize| match self.directory[dir] {
             NO_BLOCK => None,
             b => Some(b as usize * BLOCK_CELLS),
         };
-        let mut base = block(dir);
-        let wrap = w.step.map(|s| if s > 0 { 0 } else { BLOCK_MASK });
+        let mut base = block(w.dir);
         // The first cell (the viewpoint's) is not tested; the last one is the target.
-        while let Some(k) = w.advance() {
-            let coord = match k {
-                0 => w.x,
-                1 => w.y,
-                _ => w.z,
-            };
-            if coord & BLOCK_MASK == wrap[k] {
-                dir = if w.step[k] > 0 {
-                    dir + stride[k]
-                } else {
-                    dir - stride[k]
-                };
-                base = block(dir);
+        while let Some(entered) = w.advance() {
+            if entered {
+                base = block(w.dir);
             }
-            let c = w.cell();
+            let c = w.walk.cell();
             if c == target {
                 break;
             }
@@ -747,6 +718,51 @@ impl VoxelMap {
                 f(c, Self::state_of(v));
             }
         }
+    }
+}
+
+/// A DDA walk that also follows the directory entry of the block it is in, so the cells of a
+/// ray are found without a directory lookup per cell.
+struct BlockWalk {
+    walk: Walk,
+    dir: usize,
+    stride: [usize; 3],
+    /// The in-block coordinate at which a step along each axis has entered a new block.
+    wrap: [u32; 3],
+}
+
+impl BlockWalk {
+    #[inline]
+    fn new(map: &VoxelMap, a: &Point3<f64>, b: &Point3<f64>) -> Self {
+        let walk = Walk::new(&map.grid, a, b);
+        let [bx, by, _] = map.block_dims.map(|v| v as usize);
+        Self {
+            dir: map.directory_index(walk.cell()),
+            stride: [1, bx, bx * by],
+            wrap: walk.step.map(|s| if s > 0 { 0 } else { BLOCK_MASK }),
+            walk,
+        }
+    }
+
+    /// Steps into the next cell: `Some(true)` if it lies in another block than the last,
+    /// `None` at the end.
+    #[inline(always)]
+    fn advance(&mut self) -> Option<bool> {
+        let k = self.walk.advance()?;
+        let coord = match k {
+            0 => self.walk.x,
+            1 => self.walk.y,
+            _ => self.walk.z,
+        };
+        let entered = coord & BLOCK_MASK == self.wrap[k];
+        if entered {
+            self.dir = if self.walk.step[k] > 0 {
+                self.dir + self.stride[k]
+            } else {
+                self.dir - self.stride[k]
+            };
+        }
+        Some(entered)
     }
 }
 

@@ -185,9 +185,9 @@ pub struct Plan {
     pub targets: Vec<Target>,
     /// Clusters with no valid viewpoint that sees at least r0 of their cells.
     pub unviewable: Vec<ClusterId>,
-    /// Candidate viewpoints sampled, and those valid (bounds, free, clearance, support).
+    /// Candidate viewpoints sampled.
     pub sampled: usize,
-    /// Valid candidates.
+    /// Valid candidates (inside the bounds, free, with clearance, supported).
     pub valid: usize,
 }
 
