@@ -147,11 +147,15 @@ pub fn read_ply(mut reader: impl std::io::Read) -> Result<Vec<Point3<f64>>, Clou
 /// # Errors
 /// [`CloudError::Open`] if the file cannot be opened, otherwise as [`read_ply`].
 pub fn load_ply(path: &Path) -> Result<Vec<Point3<f64>>, CloudError> {
+    read_ply(open(path)?)
+}
+
+fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>, CloudError> {
     let file = std::fs::File::open(path).map_err(|source| CloudError::Open {
         path: path.display().to_string(),
         source,
     })?;
-    read_ply(std::io::BufReader::new(file))
+    Ok(std::io::BufReader::new(file))
 }
 
 /// Reads a PCD file (see [`read_pcd`]).
@@ -159,11 +163,7 @@ pub fn load_ply(path: &Path) -> Result<Vec<Point3<f64>>, CloudError> {
 /// # Errors
 /// [`CloudError::Open`] if the file cannot be opened, otherwise as [`read_pcd`].
 pub fn load_pcd(path: &Path) -> Result<Vec<Point3<f64>>, CloudError> {
-    let file = std::fs::File::open(path).map_err(|source| CloudError::Open {
-        path: path.display().to_string(),
-        source,
-    })?;
-    read_pcd(std::io::BufReader::new(file))
+    read_pcd(open(path)?)
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@ pub mod cloud_io;
 pub mod lidar;
 pub mod metrics;
 pub mod registration;
+pub mod rng;
 pub mod scene;
 pub mod uav;
 pub mod world;

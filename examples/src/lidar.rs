@@ -5,6 +5,7 @@
 use lidar_kinematics::{Beam, KinematicChain, KinematicsError, LidarSensor};
 use nalgebra::{Isometry3, Point3};
 
+use crate::rng::Rng;
 use crate::world::World;
 
 /// Noise of the simulated LiDAR.
@@ -29,53 +30,13 @@ pub struct LidarPoint {
     pub point: Point3<f64>,
 }
 
-/// A seeded Gaussian source (Box–Muller over a 64-bit LCG).
-#[derive(Debug, Clone)]
-pub struct Gaussian {
-    state: u64,
-    spare: Option<f64>,
-}
-
-impl Gaussian {
-    /// A source from a seed.
-    pub fn new(seed: u64) -> Self {
-        Self {
-            state: seed ^ 0x2545_F491_4F6C_DD1D,
-            spare: None,
-        }
-    }
-
-    fn unit(&mut self) -> f64 {
-        self.state = self
-            .state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        // 53 random bits, shifted into (0, 1].
-        #[allow(clippy::cast_precision_loss)]
-        let v = ((self.state >> 11) + 1) as f64 / (1u64 << 53) as f64;
-        v
-    }
-
-    /// One standard normal sample.
-    pub fn sample(&mut self) -> f64 {
-        if let Some(s) = self.spare.take() {
-            return s;
-        }
-        let (u, v) = (self.unit(), self.unit());
-        let r = (-2.0 * u.ln()).sqrt();
-        let a = core::f64::consts::TAU * v;
-        self.spare = Some(r * a.sin());
-        r * a.cos()
-    }
-}
-
 /// The simulated LiDAR on its motor.
 #[derive(Debug, Clone)]
 pub struct LidarSim {
     sensor: LidarSensor,
     chain: KinematicChain,
     noise: LidarNoise,
-    rng: Gaussian,
+    rng: Rng,
     beams: Vec<Beam>,
 }
 
@@ -86,7 +47,7 @@ impl LidarSim {
             sensor,
             chain,
             noise,
-            rng: Gaussian::new(seed),
+            rng: Rng::new(seed),
             beams: Vec::new(),
         }
     }
@@ -122,7 +83,7 @@ impl LidarSim {
             let Some(r) = world.cast_ray(&origin, &dir, range.max()) else {
                 continue;
             };
-            let noisy = r + self.noise.range_std * self.rng.sample();
+            let noisy = r + self.noise.range_std * self.rng.normal();
             if !range.contains(noisy) {
                 continue;
             }
@@ -179,15 +140,15 @@ mod tests {
 
     #[test]
     fn noise_has_the_configured_spread_and_is_seeded() {
-        let mut g = Gaussian::new(5);
-        let xs: Vec<f64> = (0..20_000).map(|_| g.sample()).collect();
+        let mut g = Rng::new(5);
+        let xs: Vec<f64> = (0..20_000).map(|_| g.normal()).collect();
         let mean = xs.iter().sum::<f64>() / xs.len() as f64;
         let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64;
         assert!(
             mean.abs() < 0.03 && (var - 1.0).abs() < 0.05,
             "{mean} {var}"
         );
-        let mut h = Gaussian::new(5);
-        assert_eq!(h.sample(), xs[0]);
+        let mut h = Rng::new(5);
+        assert_eq!(h.normal(), xs[0]);
     }
 }

@@ -5,6 +5,7 @@ use std::collections::VecDeque;
 
 use nalgebra::{Point3, Vector3};
 
+use crate::rng::Rng;
 use crate::world::{World, WorldError};
 
 /// A solid box by its min and max corners \[m\].
@@ -23,32 +24,6 @@ pub struct Scene {
     pub start: Point3<f64>,
     /// The solid boxes.
     pub boxes: Vec<Aabb>,
-}
-
-/// A small deterministic pseudo-random generator (PCG-style LCG) for scene layouts.
-#[derive(Debug, Clone)]
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64) -> Self {
-        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xD1B5_4A32_D192_ED03)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        // The top 53 bits form an exact f64 mantissa.
-        #[allow(clippy::cast_precision_loss)]
-        let v = (self.0 >> 11) as f64 / (1u64 << 53) as f64;
-        v
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
 }
 
 fn aabb(x0: f64, y0: f64, z0: f64, x1: f64, y1: f64, z1: f64) -> Aabb {

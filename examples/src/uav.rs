@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
-use crate::lidar::Gaussian;
+use crate::rng::Rng;
 
 /// Gravity \[m/s²\].
 pub const GRAVITY: f64 = 9.81;
@@ -84,7 +84,7 @@ pub struct ImuSample {
 pub struct ImuSim {
     noise: ImuNoise,
     rate: f64,
-    rng: Gaussian,
+    rng: Rng,
     acc_bias: Vector3<f64>,
     gyro_bias: Vector3<f64>,
 }
@@ -95,14 +95,14 @@ impl ImuSim {
         Self {
             noise,
             rate,
-            rng: Gaussian::new(seed),
+            rng: Rng::new(seed),
             acc_bias: Vector3::zeros(),
             gyro_bias: Vector3::zeros(),
         }
     }
 
     fn gauss3(&mut self) -> Vector3<f64> {
-        Vector3::new(self.rng.sample(), self.rng.sample(), self.rng.sample())
+        Vector3::new(self.rng.normal(), self.rng.normal(), self.rng.normal())
     }
 
     /// The sample at `time` for a body with attitude `attitude`, world acceleration `acc`
