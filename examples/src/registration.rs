@@ -137,7 +137,8 @@ impl PlaneMap {
     }
 
     /// Registers `scan` (points in the scan frame) to the map, starting from `initial`.
-    /// With no matches the initial pose is returned unchanged (`matched == 0`).
+    /// Non-finite scan points are skipped; with no matches the initial pose is returned
+    /// unchanged (`matched == 0`).
     pub fn register(
         &self,
         scan: &[Point3<f64>],
@@ -156,7 +157,7 @@ impl PlaneMap {
             let mut h = Matrix6::zeros();
             let mut g = Vector6::zeros();
             let mut matched = 0;
-            for p in scan {
+            for p in scan.iter().filter(|p| p.iter().all(|v| v.is_finite())) {
                 let x = pose * p;
                 let Some((n, c)) = self.plane(&x, cfg) else {
                     continue;
@@ -306,5 +307,17 @@ mod tests {
         let r = map.register(&[Point3::origin()], &p, &RegistrationConfig::default());
         assert_eq!(r.pose, p);
         assert_eq!(r.matched, 0);
+        // NaN scan points are skipped, not matched.
+        let full = PlaneMap::new(&[
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+        ]);
+        let r = full.register(
+            &[Point3::new(f64::NAN, 0.0, 0.0)],
+            &p,
+            &RegistrationConfig::default(),
+        );
+        assert_eq!((r.pose, r.matched), (p, 0));
     }
 }
