@@ -64,7 +64,7 @@ impl Default for MpcConfig {
                 core::f64::consts::PI,
                 core::f64::consts::TAU,
             )
-            .unwrap_or_else(|_| unreachable_limits()),
+            .unwrap_or_default(),
             alpha: 1.0,
             beta: 1.0,
             gamma: 0.01,
@@ -75,12 +75,6 @@ impl Default for MpcConfig {
             backend: QpBackend::Dedicated,
         }
     }
-}
-
-/// The default limits are valid constants; this is never reached.
-#[cold]
-fn unreachable_limits() -> MotorLimits {
-    MotorLimits::try_new(0.0, 0.0, 0.0).unwrap_or_else(|_| unreachable_limits())
 }
 
 impl MpcConfig {
@@ -364,17 +358,38 @@ impl FuMpc {
 
     /// The cost terms of a feasible sequence, with θ from the affine model.
     fn cost(&self, theta0: f64, omega0: f64, u: &[f64], fisher: Option<&PeriodicPwl>) -> CostTerms {
+        self.rollout(theta0, omega0, u, fisher, None)
+    }
+
+    /// Rolls a feasible sequence out through the affine model, eqs. (11)–(12), and returns its
+    /// cost terms; with `slopes`, also writes s_k = α J_k'(θ_k) + β f'(θ_k), k = 1..N.
+    fn rollout(
+        &self,
+        theta0: f64,
+        omega0: f64,
+        u: &[f64],
+        fisher: Option<&PeriodicPwl>,
+        mut slopes: Option<&mut [f64]>,
+    ) -> CostTerms {
         let c = &self.config;
         let (mut th, mut w) = (theta0, omega0);
         let mut t = CostTerms::default();
         for (k, x) in u.iter().enumerate() {
             w += x * c.dt; // eq. (11), inside the limits
             th += w * c.dt; // eq. (12)
+            let mut slope = 0.0;
             if c.alpha > 0.0 {
-                t.frontier += c.alpha * self.surrogates[k + 1].value(th);
+                let (v, d) = self.surrogates[k + 1].eval(th);
+                t.frontier += c.alpha * v;
+                slope += c.alpha * d;
             }
             if let (Some(f), true) = (fisher, c.beta > 0.0) {
-                t.localisation += c.beta * f.value(th);
+                let (v, d) = f.eval(th);
+                t.localisation += c.beta * v;
+                slope += c.beta * d;
+            }
+            if let Some(s) = slopes.as_deref_mut() {
+                s[k] = slope;
             }
             if k + 1 < u.len() {
                 let d = u[k + 1] - x;
@@ -382,31 +397,6 @@ impl FuMpc {
             }
         }
         t
-    }
-
-    /// Slopes s_k = α J_k'(θ_k) + β f'(θ_k) along a sequence, k = 1..N.
-    fn slopes(
-        &self,
-        theta0: f64,
-        omega0: f64,
-        u: &[f64],
-        fisher: Option<&PeriodicPwl>,
-        s: &mut [f64],
-    ) {
-        let c = &self.config;
-        let (mut th, mut w) = (theta0, omega0);
-        for (k, x) in u.iter().enumerate() {
-            w += x * c.dt;
-            th += w * c.dt;
-            let mut v = 0.0;
-            if c.alpha > 0.0 {
-                v += c.alpha * self.surrogates[k + 1].eval(th).1;
-            }
-            if let (Some(f), true) = (fisher, c.beta > 0.0) {
-                v += c.beta * f.eval(th).1;
-            }
-            s[k] = v;
-        }
     }
 
     fn solve(&mut self, input: &ScanInput<'_>) -> Result<ScanStatus> {
@@ -469,7 +459,7 @@ impl FuMpc {
         w.qp.omega0 = omega0;
         for _ in 0..c.iterations {
             iterations += 1;
-            self.slopes(theta0, omega0, &w.best, fisher, &mut w.slopes);
+            self.rollout(theta0, omega0, &w.best, fisher, Some(&mut w.slopes));
             // q_j = Σ_{k>j} s_k Δt² (k − j) − ρ ū_j: θ_k moves by Δt²(k − j) per unit of u_j.
             let (mut acc, mut weighted) = (0.0, 0.0);
             for j in (0..n).rev() {
