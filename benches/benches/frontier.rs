@@ -6,7 +6,7 @@
 //! ≤ 3 ms; viewpoint sampling, visibility and dynamic clustering for 50 clusters ≤ 10 ms.
 //!
 //! Run with `cargo bench -p fu-mpc-benches --bench frontier`. The viewpoint bench explores
-//! an office floor with a sensor range of 10 m (45 clusters of at least 20 cells); set
+//! an office floor with a sensor range of 10 m (43 clusters of at least 20 cells); set
 //! `FRONTIER_BENCH_RANGE` (metres) to change the range and with it the cluster count.
 #![allow(clippy::unwrap_used, clippy::print_stderr)]
 
@@ -17,6 +17,7 @@ use frontier::{
     Bounds, FrontierConfig, Frontiers, MapConfig, Omnidirectional, ViewpointConfig, VoxelMap,
     plan_targets,
 };
+use fu_mpc_examples::world::World;
 use nalgebra::{Point3, Vector3};
 
 /// `n` directions spread evenly over the sphere (Fibonacci lattice).
@@ -35,7 +36,7 @@ fn sphere(n: usize) -> Vec<Vector3<f64>> {
 /// An office floor, 40 × 30 × 3 m: outer walls, floor, ceiling, rows of rooms with doors and
 /// pillars, as solid boxes.
 struct Office {
-    boxes: Vec<(Point3<f64>, Point3<f64>)>,
+    world: World,
 }
 
 impl Office {
@@ -67,33 +68,15 @@ impl Office {
             let x = 3.0 + 6.5 * f64::from(k);
             boxes.push((p(x, 14.6, 0.0), p(x + 0.6, 15.4, 3.0)));
         }
-        Self { boxes }
-    }
-
-    fn cast(&self, o: &Point3<f64>, d: &Vector3<f64>, t_max: f64) -> f64 {
-        let mut best = t_max;
-        for (lo, hi) in &self.boxes {
-            let (mut t0, mut t1) = (0.0f64, best);
-            for k in 0..3 {
-                let inv = 1.0 / d[k];
-                let (mut a, mut b) = ((lo[k] - o[k]) * inv, (hi[k] - o[k]) * inv);
-                if a > b {
-                    std::mem::swap(&mut a, &mut b);
-                }
-                t0 = t0.max(a);
-                t1 = t1.min(b);
-            }
-            if t0 <= t1 && t0 > 0.0 {
-                best = t0;
-            }
+        Self {
+            world: World::from_boxes(&boxes).unwrap(),
         }
-        best
     }
 
     fn frame(&self, o: &Point3<f64>, rays: usize, range: f64) -> Vec<Point3<f64>> {
         sphere(rays)
             .iter()
-            .map(|d| o + d * self.cast(o, d, range))
+            .map(|d| o + d * self.world.cast_ray(o, d, range).unwrap_or(range))
             .collect()
     }
 }
