@@ -375,7 +375,7 @@ impl VoxelMap {
     }
 
     /// Bytes the map holds on the heap: cell storage (1 byte per cell of an allocated block),
-    /// the block directory, per-block counters and the per-frame scratch space.
+    /// the block directory, per-block counters, the per-frame marks and the ray buffer.
     pub fn memory_bytes(&self) -> usize {
         use core::mem::size_of;
         self.cells.capacity() * size_of::<i8>()

@@ -169,7 +169,7 @@ pub fn frontier_surrogates(
                 let c = (k as i64).rem_euclid(knots as i64) as usize;
                 // |k h − φ| ≤ δ + h/2 < π here, so the offset needs no wrapping.
                 let off = (k * h - phi).abs();
-                values[c] += r * (0.5 + (delta - off) / h).clamp(0.0, 1.0);
+                values[c] += r * gate(off, delta, h);
                 k += 1.0;
             }
         }
@@ -190,5 +190,11 @@ pub fn frontier_surrogates(
 #[inline]
 fn weight(theta: f64, phi: f64, delta: f64, h: f64) -> f64 {
     let off = (theta - phi + PI).rem_euclid(TAU) - PI;
-    (0.5 + (delta - off.abs()) / h).clamp(0.0, 1.0)
+    gate(off.abs(), delta, h)
+}
+
+/// The smoothed gate at angular offset `off` ∈ [0, π] from the arc's centre.
+#[inline]
+fn gate(off: f64, delta: f64, h: f64) -> f64 {
+    (0.5 + (delta - off) / h).clamp(0.0, 1.0)
 }
