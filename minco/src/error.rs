@@ -40,10 +40,11 @@ pub enum MincoError {
         found: usize,
     },
     /// The linear system is numerically singular (e.g. durations spanning too many orders of magnitude).
-    #[error("the MINCO system is numerically singular at row {row}")]
+    #[error("the MINCO system is numerically singular at junction {junction}")]
     Singular {
-        /// Row of the failing pivot.
-        row: usize,
+        /// Junction (0-based, between pieces `junction` and `junction + 1`) whose pivot block
+        /// failed, or 0 when the coefficients overflowed.
+        junction: usize,
     },
     /// A gradient was requested before a successful solve.
     #[error("no solved trajectory: call solve first")]

@@ -12,6 +12,11 @@
 //! with respect to q and T in O(M) by one adjoint solve. That is what makes MINCO
 //! trajectories cheap to optimise; the FU-MPC system uses them for its local references.
 //!
+//! The system is not solved as it stands: each piece is written in Hermite form through its
+//! end states, which leaves only the derivatives 1..S−1 at each junction unknown, and those
+//! solve a symmetric positive-definite block-tridiagonal system with (S−1) × (S−1) blocks.
+//! Its block LDLᵀ serves the solve and the adjoint alike.
+//!
 //! - [`Minco`] (with [`MinimumAcceleration`], [`MinimumJerk`], [`MinimumSnap`]): set up once,
 //!   solve for new (q, T) without allocating, energy and gradients;
 //! - [`Trajectory`]: evaluation, sampling and speed/acceleration bounds;
@@ -39,8 +44,8 @@
 #![deny(missing_docs)]
 #![warn(rustdoc::broken_intra_doc_links)]
 
-mod band;
 mod error;
+mod hermite;
 mod lbfgs;
 mod minco;
 mod optimizer;

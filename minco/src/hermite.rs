@@ -1,0 +1,267 @@
+//! Hermite form of one piece on the unit interval, and the small dense algebra of its blocks.
+//!
+//! A polynomial of degree 2S − 1 on [0, T] is fixed by its states (derivatives 0..S−1) at both
+//! ends, z = [a₀..a_{S−1}, b₀..b_{S−1}]. With τ = t/T, the scaled states z̃_j = T^{m_j} z_j
+//! (m_j = j mod S, the order of slot j) and the scaled coefficients c̃_k = T^k c_k are related
+//! by a constant matrix, c̃ = B₁ z̃, and the effort of the piece is
+//! ∫₀^T ‖p^(S)‖² dt = T^{1−2S} z̃ᵀ W₁ z̃ with W₁ = B₁ᵀ Q₁ B₁. Every table here is a compile-time
+//! constant, so a solve only scales them by powers of T.
+
+use crate::poly::{FALLING, MAX_COEFFS};
+
+/// A 2S × 2S table (S ≤ 4), indexed `[row][column]`.
+pub(crate) type Table = [[f64; MAX_COEFFS]; MAX_COEFFS];
+
+/// Largest size of a junction block: the S − 1 free derivatives 1..S−1 of a junction state.
+pub(crate) const MAX_FREE: usize = MAX_COEFFS / 2 - 1;
+
+/// A small square block of the junction system.
+pub(crate) type Block = [[f64; MAX_FREE]; MAX_FREE];
+
+/// The constant tables of order S.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Tables {
+    /// B₁: scaled states to scaled coefficients.
+    pub(crate) b: Table,
+    /// (m_j − k) · B₁\[k\]\[j\]: with T^{−k−1}, the T-derivative of B(T) = T^{−k} B₁ T^{m_j}.
+    pub(crate) b_dt: Table,
+    /// W₁ = B₁ᵀ Q₁ B₁: the effort of a piece on [0, 1] as a quadratic form in its states.
+    pub(crate) w: Table,
+    /// (m_i + m_j + 1 − 2S) · W₁\[i\]\[j\]: with T^{−2S}, the T-derivative of W(T).
+    pub(crate) w_dt: Table,
+}
+
+/// The tables of each order, `TABLES[s]` for s = 2, 3, 4.
+pub(crate) const TABLES: [Tables; 5] = {
+    let zero = Tables {
+        b: [[0.0; MAX_COEFFS]; MAX_COEFFS],
+        b_dt: [[0.0; MAX_COEFFS]; MAX_COEFFS],
+        w: [[0.0; MAX_COEFFS]; MAX_COEFFS],
+        w_dt: [[0.0; MAX_COEFFS]; MAX_COEFFS],
+    };
+    [zero, zero, tables(2), tables(3), tables(4)]
+};
+
+/// Builds the tables of order `s` by Gauss–Jordan elimination of the Hermite conditions.
+const fn tables(s: usize) -> Tables {
+    let n = 2 * s;
+    // Hermite conditions: row m is p^(m)(0) = m! c̃_m, row s + m is p^(m)(1) = Σ_k k!/(k−m)! c̃_k.
+    let mut h = [[0.0; MAX_COEFFS]; MAX_COEFFS];
+    let mut inv = [[0.0; MAX_COEFFS]; MAX_COEFFS];
+    let mut m = 0;
+    while m < s {
+        h[m][m] = FALLING[m][m];
+        let mut k = m;
+        while k < n {
+            h[s + m][k] = FALLING[m][k];
+            k += 1;
+        }
+        m += 1;
+    }
+    let mut i = 0;
+    while i < n {
+        inv[i][i] = 1.0;
+        i += 1;
+    }
+    // Gauss–Jordan with partial pivoting: inv = H⁻¹ = B₁.
+    let mut col = 0;
+    while col < n {
+        let mut piv = col;
+        let mut r = col + 1;
+        while r < n {
+            if h[r][col].abs() > h[piv][col].abs() {
+                piv = r;
+            }
+            r += 1;
+        }
+        let (hr, ir) = (h[piv], inv[piv]);
+        h[piv] = h[col];
+        inv[piv] = inv[col];
+        h[col] = hr;
+        inv[col] = ir;
+        let p = h[col][col];
+        let mut j = 0;
+        while j < n {
+            h[col][j] /= p;
+            inv[col][j] /= p;
+            j += 1;
+        }
+        let mut r = 0;
+        while r < n {
+            if r != col {
+                let f = h[r][col];
+                let mut j = 0;
+                while j < n {
+                    h[r][j] -= f * h[col][j];
+                    inv[r][j] -= f * inv[col][j];
+                    j += 1;
+                }
+            }
+            r += 1;
+        }
+        col += 1;
+    }
+    // W₁ = B₁ᵀ Q₁ B₁ with Q₁[k][l] = k!/(k−s)! · l!/(l−s)! / (k + l − 2s + 1) for k, l ≥ s.
+    let mut qb = [[0.0; MAX_COEFFS]; MAX_COEFFS];
+    let mut k = s;
+    while k < n {
+        let mut j = 0;
+        while j < n {
+            let mut acc = 0.0;
+            let mut l = s;
+            while l < n {
+                let q = FALLING[s][k] * FALLING[s][l] / (k + l - 2 * s + 1) as f64;
+                acc += q * inv[l][j];
+                l += 1;
+            }
+            qb[k][j] = acc;
+            j += 1;
+        }
+        k += 1;
+    }
+    let mut out = Tables {
+        b: inv,
+        b_dt: [[0.0; MAX_COEFFS]; MAX_COEFFS],
+        w: [[0.0; MAX_COEFFS]; MAX_COEFFS],
+        w_dt: [[0.0; MAX_COEFFS]; MAX_COEFFS],
+    };
+    let mut i = 0;
+    while i < n {
+        let mut j = 0;
+        while j < n {
+            let mut acc = 0.0;
+            let mut k = s;
+            while k < n {
+                acc += inv[k][i] * qb[k][j];
+                k += 1;
+            }
+            out.w[i][j] = acc;
+            let e = (i % s + j % s + 1) as f64 - (2 * s) as f64;
+            out.w_dt[i][j] = e * acc;
+            out.b_dt[i][j] = ((j % s) as f64 - i as f64) * inv[i][j];
+            j += 1;
+        }
+        i += 1;
+    }
+    out
+}
+
+/// The inverse of the symmetric positive-definite leading `n × n` part of `a`, by Cholesky.
+///
+/// `None` if a pivot is not positive and finite: the junction system is singular in floating
+/// point (extreme durations).
+#[inline(always)]
+pub(crate) fn spd_inverse(a: &Block, n: usize) -> Option<Block> {
+    let mut l = [[0.0; MAX_FREE]; MAX_FREE];
+    for j in 0..n {
+        let mut d = a[j][j];
+        for k in 0..j {
+            d -= l[j][k] * l[j][k];
+        }
+        if !(d > 0.0 && d.is_finite()) {
+            return None;
+        }
+        let d = d.sqrt();
+        l[j][j] = d;
+        for i in j + 1..n {
+            let mut v = a[i][j];
+            for k in 0..j {
+                v -= l[i][k] * l[j][k];
+            }
+            l[i][j] = v / d;
+        }
+    }
+    // L⁻¹ by forward substitution, then A⁻¹ = L⁻ᵀ L⁻¹.
+    let mut li = [[0.0; MAX_FREE]; MAX_FREE];
+    for j in 0..n {
+        li[j][j] = 1.0 / l[j][j];
+        for i in j + 1..n {
+            let mut v = 0.0;
+            for k in j..i {
+                v -= l[i][k] * li[k][j];
+            }
+            li[i][j] = v / l[i][i];
+        }
+    }
+    let mut inv = [[0.0; MAX_FREE]; MAX_FREE];
+    for i in 0..n {
+        for j in 0..=i {
+            let mut v = 0.0;
+            for k in i..n {
+                v += li[k][i] * li[k][j];
+            }
+            inv[i][j] = v;
+            inv[j][i] = v;
+        }
+    }
+    Some(inv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::poly::eval;
+
+    /// B₁ reproduces the states it was built from, for every order.
+    #[test]
+    fn hermite_interpolates_its_states() {
+        for s in 2..=4 {
+            let t = &TABLES[s];
+            for j in 0..2 * s {
+                // Coefficients of the basis polynomial of state slot j.
+                let c: Vec<[f64; 1]> = (0..2 * s).map(|k| [t.b[k][j]]).collect();
+                for m in 0..s {
+                    let want = |slot: usize| if slot == j { 1.0 } else { 0.0 };
+                    let at0 = eval(&c, m, 0.0)[0];
+                    let at1 = eval(&c, m, 1.0)[0];
+                    assert!((at0 - want(m)).abs() < 1e-12, "s={s} j={j} m={m}");
+                    assert!((at1 - want(s + m)).abs() < 1e-12, "s={s} j={j} m={m}");
+                }
+            }
+        }
+    }
+
+    /// W₁ is the effort: compare with a fine midpoint quadrature of ‖p^(s)‖².
+    #[test]
+    fn effort_table_matches_quadrature() {
+        for s in 2..=4 {
+            let t = &TABLES[s];
+            let z: Vec<f64> = (0..2 * s).map(|j| (j as f64 * 0.7).sin() + 0.3).collect();
+            let c: Vec<[f64; 1]> = (0..2 * s)
+                .map(|k| [(0..2 * s).map(|j| t.b[k][j] * z[j]).sum()])
+                .collect();
+            let steps = 20_000_u32;
+            let quad: f64 = (0..steps)
+                .map(|i| {
+                    let x = (f64::from(i) + 0.5) / f64::from(steps);
+                    eval(&c, s, x)[0].powi(2)
+                })
+                .sum::<f64>()
+                / f64::from(steps);
+            let form: f64 = (0..2 * s)
+                .flat_map(|i| (0..2 * s).map(move |j| (i, j)))
+                .map(|(i, j)| z[i] * t.w[i][j] * z[j])
+                .sum();
+            assert!((quad - form).abs() < 1e-6 * form.abs().max(1.0), "s={s}");
+        }
+    }
+
+    #[test]
+    fn spd_inverse_inverts_and_rejects() {
+        let a: Block = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]];
+        for n in 1..=3 {
+            let inv = spd_inverse(&a, n).unwrap();
+            for i in 0..n {
+                for j in 0..n {
+                    let v: f64 = (0..n).map(|k| a[i][k] * inv[k][j]).sum();
+                    let want = if i == j { 1.0 } else { 0.0 };
+                    assert!((v - want).abs() < 1e-14);
+                }
+            }
+        }
+        let indefinite: Block = [[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!(spd_inverse(&indefinite, 2).is_none());
+        let nan: Block = [[f64::NAN, 0.0, 0.0]; 3];
+        assert!(spd_inverse(&nan, 1).is_none());
+    }
+}
