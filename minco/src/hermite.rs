@@ -7,7 +7,7 @@
 //! ∫₀^T ‖p^(S)‖² dt = T^{1−2S} z̃ᵀ W₁ z̃ with W₁ = B₁ᵀ Q₁ B₁. Every table here is a compile-time
 //! constant, so a solve only scales them by powers of T.
 
-use crate::poly::{FALLING, MAX_COEFFS};
+use crate::poly::MAX_COEFFS;
 
 /// A 2S × 2S table (S ≤ 4), indexed `[row][column]`.
 pub(crate) type Table = [[f64; MAX_COEFFS]; MAX_COEFFS];
@@ -42,37 +42,107 @@ pub(crate) const TABLES: [Tables; 5] = {
     [zero, zero, tables(2), tables(3), tables(4)]
 };
 
-/// Builds the tables of order `s` by Gauss–Jordan elimination of the Hermite conditions.
+/// An exact fraction n/d (d > 0, lowest terms), for building the tables at compile time:
+/// f64 elimination would leave errors of ~1e-14 relative in them, and every solve would
+/// inherit those as systematic residuals in the high derivatives.
+#[derive(Debug, Clone, Copy)]
+struct Ratio {
+    n: i128,
+    d: i128,
+}
+
+const fn gcd(mut a: i128, mut b: i128) -> i128 {
+    if a < 0 {
+        a = -a;
+    }
+    if b < 0 {
+        b = -b;
+    }
+    while b != 0 {
+        let r = a % b;
+        a = b;
+        b = r;
+    }
+    a
+}
+
+impl Ratio {
+    const ZERO: Ratio = Ratio { n: 0, d: 1 };
+
+    const fn new(n: i128, d: i128) -> Ratio {
+        let (n, d) = if d < 0 { (-n, -d) } else { (n, d) };
+        let g = gcd(n, d);
+        if g == 0 {
+            Ratio::ZERO
+        } else {
+            Ratio { n: n / g, d: d / g }
+        }
+    }
+
+    const fn int(n: i128) -> Ratio {
+        Ratio { n, d: 1 }
+    }
+
+    const fn add(self, o: Ratio) -> Ratio {
+        Ratio::new(self.n * o.d + o.n * self.d, self.d * o.d)
+    }
+
+    const fn sub(self, o: Ratio) -> Ratio {
+        Ratio::new(self.n * o.d - o.n * self.d, self.d * o.d)
+    }
+
+    const fn mul(self, o: Ratio) -> Ratio {
+        Ratio::new(self.n * o.n, self.d * o.d)
+    }
+
+    const fn div(self, o: Ratio) -> Ratio {
+        Ratio::new(self.n * o.d, self.d * o.n)
+    }
+
+    /// Correctly rounded: numerators and denominators of these tables are far below 2^53.
+    const fn to_f64(self) -> f64 {
+        self.n as f64 / self.d as f64
+    }
+}
+
+/// k!/(k − m)! as an integer.
+const fn falling(m: usize, k: usize) -> i128 {
+    let mut f = 1;
+    let mut j = k + 1 - m;
+    while j <= k {
+        f *= j as i128;
+        j += 1;
+    }
+    f
+}
+
+/// Builds the tables of order `s` by exact Gauss–Jordan elimination of the Hermite conditions.
 const fn tables(s: usize) -> Tables {
     let n = 2 * s;
     // Hermite conditions: row m is p^(m)(0) = m! c̃_m, row s + m is p^(m)(1) = Σ_k k!/(k−m)! c̃_k.
-    let mut h = [[0.0; MAX_COEFFS]; MAX_COEFFS];
-    let mut inv = [[0.0; MAX_COEFFS]; MAX_COEFFS];
+    let mut h = [[Ratio::ZERO; MAX_COEFFS]; MAX_COEFFS];
+    let mut inv = [[Ratio::ZERO; MAX_COEFFS]; MAX_COEFFS];
     let mut m = 0;
     while m < s {
-        h[m][m] = FALLING[m][m];
+        h[m][m] = Ratio::int(falling(m, m));
         let mut k = m;
         while k < n {
-            h[s + m][k] = FALLING[m][k];
+            h[s + m][k] = Ratio::int(falling(m, k));
             k += 1;
         }
         m += 1;
     }
     let mut i = 0;
     while i < n {
-        inv[i][i] = 1.0;
+        inv[i][i] = Ratio::int(1);
         i += 1;
     }
-    // Gauss–Jordan with partial pivoting: inv = H⁻¹ = B₁.
+    // Gauss–Jordan: inv = H⁻¹ = B₁ (exact, so any non-zero pivot will do).
     let mut col = 0;
     while col < n {
         let mut piv = col;
-        let mut r = col + 1;
-        while r < n {
-            if h[r][col].abs() > h[piv][col].abs() {
-                piv = r;
-            }
-            r += 1;
+        while h[piv][col].n == 0 {
+            piv += 1;
         }
         let (hr, ir) = (h[piv], inv[piv]);
         h[piv] = h[col];
@@ -82,18 +152,18 @@ const fn tables(s: usize) -> Tables {
         let p = h[col][col];
         let mut j = 0;
         while j < n {
-            h[col][j] /= p;
-            inv[col][j] /= p;
+            h[col][j] = h[col][j].div(p);
+            inv[col][j] = inv[col][j].div(p);
             j += 1;
         }
         let mut r = 0;
         while r < n {
-            if r != col {
+            if r != col && h[r][col].n != 0 {
                 let f = h[r][col];
                 let mut j = 0;
                 while j < n {
-                    h[r][j] -= f * h[col][j];
-                    inv[r][j] -= f * inv[col][j];
+                    h[r][j] = h[r][j].sub(f.mul(h[col][j]));
+                    inv[r][j] = inv[r][j].sub(f.mul(inv[col][j]));
                     j += 1;
                 }
             }
@@ -102,16 +172,16 @@ const fn tables(s: usize) -> Tables {
         col += 1;
     }
     // W₁ = B₁ᵀ Q₁ B₁ with Q₁[k][l] = k!/(k−s)! · l!/(l−s)! / (k + l − 2s + 1) for k, l ≥ s.
-    let mut qb = [[0.0; MAX_COEFFS]; MAX_COEFFS];
+    let mut qb = [[Ratio::ZERO; MAX_COEFFS]; MAX_COEFFS];
     let mut k = s;
     while k < n {
         let mut j = 0;
         while j < n {
-            let mut acc = 0.0;
+            let mut acc = Ratio::ZERO;
             let mut l = s;
             while l < n {
-                let q = FALLING[s][k] * FALLING[s][l] / (k + l - 2 * s + 1) as f64;
-                acc += q * inv[l][j];
+                let q = Ratio::new(falling(s, k) * falling(s, l), (k + l - 2 * s + 1) as i128);
+                acc = acc.add(q.mul(inv[l][j]));
                 l += 1;
             }
             qb[k][j] = acc;
@@ -120,7 +190,7 @@ const fn tables(s: usize) -> Tables {
         k += 1;
     }
     let mut out = Tables {
-        b: inv,
+        b: [[0.0; MAX_COEFFS]; MAX_COEFFS],
         b_dt: [[0.0; MAX_COEFFS]; MAX_COEFFS],
         w: [[0.0; MAX_COEFFS]; MAX_COEFFS],
         w_dt: [[0.0; MAX_COEFFS]; MAX_COEFFS],
@@ -129,16 +199,19 @@ const fn tables(s: usize) -> Tables {
     while i < n {
         let mut j = 0;
         while j < n {
-            let mut acc = 0.0;
+            let mut acc = Ratio::ZERO;
             let mut k = s;
             while k < n {
-                acc += inv[k][i] * qb[k][j];
+                acc = acc.add(inv[k][i].mul(qb[k][j]));
                 k += 1;
             }
-            out.w[i][j] = acc;
-            let e = (i % s + j % s + 1) as f64 - (2 * s) as f64;
-            out.w_dt[i][j] = e * acc;
-            out.b_dt[i][j] = ((j % s) as f64 - i as f64) * inv[i][j];
+            let e = (i % s + j % s + 1) as i128 - (2 * s) as i128;
+            out.w[i][j] = acc.to_f64();
+            out.w_dt[i][j] = acc.mul(Ratio::int(e)).to_f64();
+            out.b[i][j] = inv[i][j].to_f64();
+            out.b_dt[i][j] = inv[i][j]
+                .mul(Ratio::int((j % s) as i128 - i as i128))
+                .to_f64();
             j += 1;
         }
         i += 1;
@@ -217,6 +290,21 @@ mod tests {
                     assert!((at0 - want(m)).abs() < 1e-12, "s={s} j={j} m={m}");
                     assert!((at1 - want(s + m)).abs() < 1e-12, "s={s} j={j} m={m}");
                 }
+            }
+        }
+    }
+
+    /// The tables are exact: W₁ of S = 4 has integer entries, and W₁ annihilates constants.
+    #[test]
+    fn tables_are_exact() {
+        let t = &TABLES[4];
+        assert_eq!(t.w[0][0], 100_800.0);
+        assert_eq!(t.w[1][5], 24_480.0);
+        assert_eq!(t.b[4][3], -2.0 / 3.0);
+        for s in 2..=4 {
+            let t = &TABLES[s];
+            for i in 0..2 * s {
+                assert_eq!(t.w[i][0], -t.w[i][s], "s={s} i={i}");
             }
         }
     }
