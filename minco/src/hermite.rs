@@ -219,41 +219,45 @@ const fn tables(s: usize) -> Tables {
     out
 }
 
-/// The inverse of the symmetric positive-definite leading `n × n` part of `a`, by Cholesky.
+/// The inverse of the symmetric positive-definite leading `n × n` part of `a`, by an LDLᵀ
+/// factorisation (no square roots).
 ///
 /// `None` if a pivot is not positive and finite: the junction system is singular in floating
 /// point (extreme durations).
 #[inline(always)]
 pub(crate) fn spd_inverse(a: &Block, n: usize) -> Option<Block> {
+    // Unit lower L and pivots d with A = L diag(d) Lᵀ.
     let mut l = [[0.0; MAX_FREE]; MAX_FREE];
+    let (mut piv, mut inv_d) = ([0.0; MAX_FREE], [0.0; MAX_FREE]);
     for j in 0..n {
         let mut d = a[j][j];
         for k in 0..j {
-            d -= l[j][k] * l[j][k];
+            d -= l[j][k] * l[j][k] * piv[k];
         }
         if !(d > 0.0 && d.is_finite()) {
             return None;
         }
-        let d = d.sqrt();
-        l[j][j] = d;
+        piv[j] = d;
+        inv_d[j] = 1.0 / d;
+        l[j][j] = 1.0;
         for i in j + 1..n {
             let mut v = a[i][j];
             for k in 0..j {
-                v -= l[i][k] * l[j][k];
+                v -= l[i][k] * l[j][k] * piv[k];
             }
-            l[i][j] = v / d;
+            l[i][j] = v * inv_d[j];
         }
     }
-    // L⁻¹ by forward substitution, then A⁻¹ = L⁻ᵀ L⁻¹.
+    // L⁻¹ (unit lower) by forward substitution, then A⁻¹ = L⁻ᵀ diag(1/d) L⁻¹.
     let mut li = [[0.0; MAX_FREE]; MAX_FREE];
     for j in 0..n {
-        li[j][j] = 1.0 / l[j][j];
+        li[j][j] = 1.0;
         for i in j + 1..n {
             let mut v = 0.0;
             for k in j..i {
                 v -= l[i][k] * li[k][j];
             }
-            li[i][j] = v / l[i][i];
+            li[i][j] = v;
         }
     }
     let mut inv = [[0.0; MAX_FREE]; MAX_FREE];
@@ -261,7 +265,7 @@ pub(crate) fn spd_inverse(a: &Block, n: usize) -> Option<Block> {
         for j in 0..=i {
             let mut v = 0.0;
             for k in i..n {
-                v += li[k][i] * li[k][j];
+                v += li[k][i] * inv_d[k] * li[k][j];
             }
             inv[i][j] = v;
             inv[j][i] = v;

@@ -328,10 +328,9 @@ impl<const S: usize, const D: usize> Minco<S, D> {
             self.pivots[k] = spd_inverse(&a, f).ok_or(MincoError::Singular { junction: k })?;
             self.work[k] = r;
         }
-        // Back substitution: x_k = P_k⁻¹ y_k − L_{k+1}ᵀ x_{k+1}.
-        for k in (0..m - 1).rev() {
-            let x = self.back_step(k, self.work[k], |s: &Self, z| s.states[S * (k + 2) + 1 + z]);
-            self.states[S * (k + 1) + 1..S * (k + 1) + S].copy_from_slice(&x[..f]);
+        self.backward_in_work();
+        for k in 0..m - 1 {
+            self.states[S * (k + 1) + 1..S * (k + 1) + S].copy_from_slice(&self.work[k][..f]);
         }
         Ok(())
     }
@@ -339,10 +338,14 @@ impl<const S: usize, const D: usize> Minco<S, D> {
     /// Replaces the right-hand side in `work` by H⁻¹ times it, with the factors of the solve.
     fn solve_in_work(&mut self) {
         let (m, f) = (self.pieces, Self::F);
-        for k in 1..m.saturating_sub(1) {
-            let (done, rest) = self.work.split_at_mut(k);
-            let (prev, y) = (&done[k - 1], &mut rest[0]);
+        if m == 1 {
+            return;
+        }
+        // Forward: y_k −= L_k y_{k−1}.
+        let mut prev = self.work[0];
+        for k in 1..m - 1 {
             let l = &self.lower[k];
+            let y = &mut self.work[k];
             for x in 0..f {
                 for z in 0..f {
                     for d in 0..D {
@@ -350,10 +353,38 @@ impl<const S: usize, const D: usize> Minco<S, D> {
                     }
                 }
             }
+            prev = *y;
         }
-        for k in (0..m.saturating_sub(1)).rev() {
-            let x = self.back_step(k, self.work[k], |s: &Self, z| s.work[k + 1][z]);
+        self.backward_in_work();
+    }
+
+    /// Block back substitution in `work`: x_k = P_k⁻¹ y_k − L_{k+1}ᵀ x_{k+1}.
+    fn backward_in_work(&mut self) {
+        let (m, f) = (self.pieces, Self::F);
+        let mut next = [[0.0; D]; MAX_FREE];
+        for k in (0..m - 1).rev() {
+            let p = &self.pivots[k];
+            let y = self.work[k];
+            let mut x = [[0.0; D]; MAX_FREE];
+            for a in 0..f {
+                for z in 0..f {
+                    for d in 0..D {
+                        x[a][d] += p[a][z] * y[z][d];
+                    }
+                }
+            }
+            if k + 2 < m {
+                let l = &self.lower[k + 1];
+                for z in 0..f {
+                    for a in 0..f {
+                        for d in 0..D {
+                            x[a][d] -= l[z][a] * next[z][d];
+                        }
+                    }
+                }
+            }
             self.work[k] = x;
+            next = x;
         }
     }
 
@@ -461,39 +492,6 @@ impl<const S: usize, const D: usize> Minco<S, D> {
                 }
             }
         }
-    }
-
-    /// One step of the block back substitution: P_k⁻¹ y − L_{k+1}ᵀ x_{k+1}, where `next(z)`
-    /// reads row z of x_{k+1} (not called for the last junction).
-    #[inline(always)]
-    fn back_step(
-        &self,
-        k: usize,
-        y: [[f64; D]; MAX_FREE],
-        next: impl Fn(&Self, usize) -> [f64; D],
-    ) -> [[f64; D]; MAX_FREE] {
-        let f = Self::F;
-        let p = &self.pivots[k];
-        let mut x = [[0.0; D]; MAX_FREE];
-        for a in 0..f {
-            for z in 0..f {
-                for d in 0..D {
-                    x[a][d] += p[a][z] * y[z][d];
-                }
-            }
-        }
-        if k + 2 < self.pieces {
-            let l = &self.lower[k + 1];
-            for z in 0..f {
-                let xn = next(self, z);
-                for a in 0..f {
-                    for d in 0..D {
-                        x[a][d] -= l[z][a] * xn[d];
-                    }
-                }
-            }
-        }
-        x
     }
 
     /// Scaled states z̃_j = T^{m_j} z_j of piece `i`, its positions relative to the start.
