@@ -39,6 +39,12 @@ pub enum CoreError {
         /// Which input.
         what: &'static str,
     },
+    /// A matrix that must be symmetric positive definite is not (e.g. a prior covariance).
+    #[error("{what} is not positive definite")]
+    NotPositiveDefinite {
+        /// Which matrix.
+        what: &'static str,
+    },
     /// An error from the kinematic chain or motor model.
     #[error(transparent)]
     Kinematics(#[from] lidar_kinematics::KinematicsError),

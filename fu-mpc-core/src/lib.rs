@@ -35,6 +35,7 @@ mod active_set;
 mod controller;
 mod error;
 mod fisher;
+pub mod icr;
 mod mpc;
 mod predict;
 mod pwl;
