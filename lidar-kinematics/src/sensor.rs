@@ -197,6 +197,16 @@ impl FieldOfView {
         self.elevation_max
     }
 
+    /// Lower azimuth bound \[rad\].
+    pub fn azimuth_min(&self) -> f64 {
+        self.azimuth_min
+    }
+
+    /// Azimuth width \[rad\], at most 2π.
+    pub fn azimuth_width(&self) -> f64 {
+        self.azimuth_width
+    }
+
     /// Whether the field covers all azimuths.
     pub fn is_full_azimuth(&self) -> bool {
         self.azimuth_width >= TAU

@@ -34,7 +34,9 @@
 mod fov;
 mod map;
 mod plan;
+mod scan;
 
 pub use fov::{Cone, FovSdf, Probit, Triangle};
 pub use map::InformationMap;
 pub use plan::{Icr, IcrConfig, IcrReport};
+pub use scan::{IcrScan, IcrScanConfig};

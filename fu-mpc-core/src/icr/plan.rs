@@ -447,7 +447,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(40))]
+        #![proptest_config(ProptestConfig::with_cases(16))]
 
         /// SE(2): planar poses and controls [v_x, v_y, ω_z] over a 2-D map.
         #[test]
@@ -465,7 +465,7 @@ mod tests {
         #[test]
         fn gradient_se3(seed in any::<u64>(), r in proptest::collection::vec(-0.6..0.6f64, 3),
                         v in proptest::collection::vec(proptest::collection::vec(-1.0..1.0f64, 6), 3)) {
-            let map = cloud_map(seed, 300);
+            let map = cloud_map(seed, 150);
             let cfg = IcrConfig { horizon: 3, tau: 0.3, kappa: 0.3, ..IcrConfig::default() };
             let mut icr = Icr::new(cfg, Cone::new(4.0, 0.6).unwrap()).unwrap();
             let start = Isometry3::new(Vector3::new(0.2, -0.1, 0.3), Vector3::new(r[0], r[1], r[2]));
