@@ -3,7 +3,9 @@
 //! Targets (medians on the 2-core reference machine): one MPC update with N = 20 and the
 //! dedicated QP ≤ 20 µs (p99 ≤ 100 µs; the dedicated back-end is not built yet, the update
 //! below uses Clarabel); the Fisher table from 20,000 points (K = 10, N_c = 72) ≤ 5 ms;
-//! frontier surrogates for 100 targets × 20 steps × 72 knots ≤ 0.5 ms.
+//! frontier surrogates for 100 targets × 20 steps × 72 knots ≤ 0.5 ms; one iCR iteration
+//! (K = 5, 100 × 100 cells) ≤ 1 ms and a 10-iteration iCR plan ≤ 10 ms; the iCR scan
+//! controller's update at N = 20 is reported next to FU-MPC's.
 //!
 //! Run with `cargo bench -p fu-mpc-benches --bench fu_mpc_core`.
 #![allow(clippy::unwrap_used, clippy::print_stderr)]
@@ -11,6 +13,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use fu_mpc_core::icr::{Icr, IcrConfig, IcrScan, IcrScanConfig, InformationMap, Triangle};
 use fu_mpc_core::{
     FisherConfig, FisherTable, FrontierTarget, FuMpc, MpcConfig, QpBackend, ScanController,
     ScanInput, UtilityConfig, frontier_surrogates,
@@ -173,5 +176,72 @@ fn bench_mpc(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_fisher, bench_surrogates, bench_mpc);
+/// The iCR scan controller at N = 20 on the same cloud, reference and sensor as the MPC
+/// updates above, so the two are compared in one run.
+fn bench_icr_scan(c: &mut Criterion) {
+    let cfg = IcrScanConfig::default();
+    let refs = reference(cfg.horizon, cfg.dt);
+    let mut icr = IcrScan::new(cfg, KinematicChain::default(), sensor()).unwrap();
+    icr.set_cloud(&room_cloud(5_000));
+    let mut theta = 0.0;
+    c.bench_function("icr_scan_update_n20", |b| {
+        b.iter(|| {
+            theta += 0.1;
+            let input = ScanInput {
+                motor: MotorState::new(theta, 1.0),
+                reference: &refs,
+                targets: &[],
+                fisher: None,
+            };
+            black_box(icr.command(black_box(&input)).unwrap())
+        });
+    });
+}
+
+/// iCR on a 100 × 100-cell window (0.1 m cells, Σ₀ = 100 I) with K = 5 and the paper's
+/// triangle: one iteration (reward and gradient; target ≤ 1 ms) and a 10-iteration plan
+/// (target ≤ 10 ms).
+fn bench_icr(c: &mut Criterion) {
+    let cells: Vec<Point3<f64>> = (0..10_000)
+        .map(|i| {
+            Point3::new(
+                f64::from(i % 100) * 0.1 - 5.0,
+                f64::from(i / 100) * 0.1 - 5.0,
+                0.0,
+            )
+        })
+        .collect();
+    let map = InformationMap::diagonal(cells, vec![0.01; 10_000]).unwrap();
+    let fov = Triangle::new(3.0, 30f64.to_radians()).unwrap();
+    let cfg = IcrConfig::default();
+    let mut icr = Icr::new(cfg, fov).unwrap();
+    let start = Isometry3::translation(-3.0, -1.0, 0.0);
+    let u0: Vec<_> = (0..cfg.horizon)
+        .map(|k| nalgebra::Vector6::new(1.5, 0.0, 0.0, 0.0, 0.0, 0.1 * f64::from(k as u32)))
+        .collect();
+    let mut grad = u0.clone();
+    c.bench_function("icr_iteration_k5_100x100", |b| {
+        b.iter(|| {
+            black_box(
+                icr.reward_and_gradient(&map, &start, black_box(&u0), &mut grad)
+                    .unwrap(),
+            )
+        });
+    });
+    c.bench_function("icr_plan_10_iterations_k5_100x100", |b| {
+        b.iter(|| {
+            let mut u = u0.clone();
+            black_box(icr.plan(&map, &start, &mut u).unwrap())
+        });
+    });
+}
+
+criterion_group!(
+    benches,
+    bench_fisher,
+    bench_surrogates,
+    bench_mpc,
+    bench_icr_scan,
+    bench_icr
+);
 criterion_main!(benches);

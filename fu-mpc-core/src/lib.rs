@@ -5,8 +5,9 @@
 //! [`FisherTable`] scores each motor angle by the localisation cost tr(F⁻¹) of the surface
 //! normals it sees, [`frontier_surrogates`] scores it by the frontiers it sees, and [`FuMpc`]
 //! chooses the motor's angular accelerations under its speed and acceleration limits.
-//! [`FixedSpeed`] and the single-term variants of [`FuMpc`] are the baselines, all behind the
-//! [`ScanController`] trait.
+//! [`FixedSpeed`], the single-term variants of [`FuMpc`] and the information-theoretic
+//! [`icr::IcrScan`] are the baselines, all behind the [`ScanController`] trait; [`icr`] also
+//! holds the iCR planner over SE(3) control sequences.
 //!
 //! # Example
 //! ```

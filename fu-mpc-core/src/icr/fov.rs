@@ -10,7 +10,7 @@ use crate::error::invalid;
 
 /// A field of view with a signed distance function in the body frame, eq. (18): negative
 /// inside, positive outside, with its gradient.
-pub trait FovSdf {
+pub trait FovSdf: Sync {
     /// The signed distance d(q) \[m\] of the body-frame point `q` and its gradient ∂d/∂q.
     ///
     /// Where d is not differentiable (on a ridge between two closest features) the gradient
@@ -42,6 +42,8 @@ pub struct Triangle {
     offsets: [f64; 3],
     /// The corners: apex, upper base corner, lower base corner.
     corners: [Vector2<f64>; 3],
+    /// The edges (start, direction, 1/length²): apex→upper, lower→apex, upper→lower.
+    edges: [(Vector2<f64>, Vector2<f64>, f64); 3],
 }
 
 impl Triangle {
@@ -71,12 +73,17 @@ impl Triangle {
             Vector2::new(height, w),
             Vector2::new(height, -w),
         ];
+        let edges = [(0, 1), (2, 0), (1, 2)].map(|(a, b): (usize, usize)| {
+            let e = corners[b] - corners[a];
+            (corners[a], e, 1.0 / e.norm_squared())
+        });
         Ok(Self {
             height,
             half_angle,
             normals,
             offsets,
             corners,
+            edges,
         })
     }
 
@@ -91,6 +98,7 @@ impl Triangle {
     }
 
     /// The 2-D signed distance and gradient, eq. (29).
+    #[inline]
     pub fn sdf2(&self, q: &Vector2<f64>) -> (f64, Vector2<f64>) {
         let side: [f64; 3] = core::array::from_fn(|i| self.normals[i].dot(q) + self.offsets[i]);
         if side.iter().all(|s| *s <= 0.0) {
@@ -104,19 +112,16 @@ impl Triangle {
             return (side[best], self.normals[best]);
         }
         // Outside: the nearest point of the boundary, on an edge (D_i) or at a corner (P_i).
-        let edges = [(0, 1), (2, 0), (1, 2)];
         let mut best = (f64::INFINITY, Vector2::zeros());
-        for (a, b) in edges {
-            let (p, r) = (self.corners[a], self.corners[b]);
-            let e = r - p;
-            let t = ((q - p).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
+        for (p, e, inv_len2) in &self.edges {
+            let t = ((q - p).dot(e) * inv_len2).clamp(0.0, 1.0);
             let diff = q - (p + e * t);
-            let d = diff.norm();
-            if d < best.0 {
-                best = (d, diff);
+            let d2 = diff.norm_squared();
+            if d2 < best.0 {
+                best = (d2, diff);
             }
         }
-        let (d, diff) = best;
+        let (d, diff) = (best.0.sqrt(), best.1);
         if d > 0.0 {
             (d, diff / d)
         } else {
@@ -126,6 +131,7 @@ impl Triangle {
 }
 
 impl FovSdf for Triangle {
+    #[inline]
     fn sdf(&self, q: &Vector3<f64>) -> (f64, Vector3<f64>) {
         let (d, g) = self.sdf2(&Vector2::new(q.x, q.y));
         (d, Vector3::new(g.x, g.y, 0.0))
@@ -176,6 +182,7 @@ impl Cone {
 }
 
 impl FovSdf for Cone {
+    #[inline]
     fn sdf(&self, q: &Vector3<f64>) -> (f64, Vector3<f64>) {
         let rho = q.y.hypot(q.z);
         let (d, g) = self.section.sdf2(&Vector2::new(q.x, rho));
@@ -239,11 +246,77 @@ impl Probit {
     }
 
     /// V⁻¹_jj of eq. (21) for noise σ: (1 − Φ(d)) / σ², and its slope in d.
+    ///
+    /// 1 − Φ = ½ erfc(y) with y = d/√(2κ) − 2 is read from a cubic Hermite table of ½ erfc
+    /// and its derivative (step 1/128 on y ∈ [−6, 6], exact beyond to double precision), so
+    /// the value is within 3e-11 of the closed form and the slope is the interpolant's own:
+    /// value and slope stay consistent for gradient methods, at a fraction of the cost of
+    /// erf and exp per cell.
+    #[inline]
     pub fn inverse_noise(&self, d: f64, sigma: f64) -> (f64, f64) {
-        let (v, s) = self.value_and_slope(d);
         let w = 1.0 / (sigma * sigma);
-        ((1.0 - v) * w, -s * w)
+        let (v, s) = half_erfc(d * self.inv_scale - 2.0);
+        (v * w, s * self.inv_scale * w)
     }
+}
+
+/// Table range and resolution of [`half_erfc`].
+const ERFC_LIMIT: f64 = 6.0;
+const ERFC_STEPS_PER_UNIT: f64 = 128.0;
+
+/// ½ erfc(y) and its derivative −exp(−y²)/√π at the knots y_i = −6 + i/128.
+fn erfc_table() -> &'static [(f64, f64)] {
+    static TABLE: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        // 1536 intervals: exact in f64.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = (2.0 * ERFC_LIMIT * ERFC_STEPS_PER_UNIT) as usize;
+        (0..=n)
+            .map(|i| {
+                // Knot indices are small.
+                #[allow(clippy::cast_precision_loss)]
+                let y = -ERFC_LIMIT + i as f64 / ERFC_STEPS_PER_UNIT;
+                (0.5 * libm::erfc(y), -(-y * y).exp() / PI.sqrt())
+            })
+            .collect()
+    })
+}
+
+/// ½ erfc(y) and its derivative by cubic Hermite interpolation of [`erfc_table`]; 1 and 0
+/// below −6, 0 and 0 above 6 (erfc(6) ≈ 2e-17). NaN propagates.
+#[inline]
+fn half_erfc(y: f64) -> (f64, f64) {
+    if y.is_nan() {
+        return (f64::NAN, f64::NAN);
+    }
+    if y <= -ERFC_LIMIT {
+        return (1.0, 0.0);
+    }
+    if y >= ERFC_LIMIT {
+        return (0.0, 0.0);
+    }
+    let table = erfc_table();
+    let x = (y + ERFC_LIMIT) * ERFC_STEPS_PER_UNIT;
+    // 0 ≤ x < 1536.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let i = (x as usize).min(table.len() - 2);
+    #[allow(clippy::cast_precision_loss)]
+    let t = x - i as f64;
+    let h = 1.0 / ERFC_STEPS_PER_UNIT;
+    let ((f0, d0), (f1, d1)) = (table[i], table[i + 1]);
+    let (m0, m1) = (d0 * h, d1 * h);
+    // Cubic Hermite basis on t ∈ [0, 1].
+    let t2 = t * t;
+    let t3 = t2 * t;
+    let v = (2.0 * t3 - 3.0 * t2 + 1.0) * f0
+        + (t3 - 2.0 * t2 + t) * m0
+        + (-2.0 * t3 + 3.0 * t2) * f1
+        + (t3 - t2) * m1;
+    let dv = (6.0 * t2 - 6.0 * t) * f0
+        + (3.0 * t2 - 4.0 * t + 1.0) * m0
+        + (-6.0 * t2 + 6.0 * t) * f1
+        + (3.0 * t2 - 2.0 * t) * m1;
+    (v, dv / h)
 }
 
 #[cfg(test)]
@@ -316,8 +389,33 @@ mod tests {
             prop_assert!((v - p.value(x)).abs() < 1e-15);
             prop_assert!((fd - s).abs() < 1e-6 * s.abs().max(1e-3), "{fd} vs {s}");
             let (w, ws) = p.inverse_noise(x, 2.0);
-            prop_assert!((w - (1.0 - v) / 4.0).abs() < 1e-15 && (ws + s / 4.0).abs() < 1e-15);
+            prop_assert!((w - (1.0 - v) / 4.0).abs() < 1e-11 && (ws + s / 4.0).abs() < 1e-7);
         }
+    }
+
+    /// The tabulated V⁻¹ is within 3e-11 of the closed form, and its slope matches its own
+    /// central differences.
+    #[test]
+    fn tabulated_inverse_noise_matches_the_closed_form() {
+        let p = Probit::new(0.5).unwrap();
+        let mut worst: f64 = 0.0;
+        for i in -20_000..20_000 {
+            let d = f64::from(i) * 7e-4 + 1e-5;
+            let (v, s) = p.inverse_noise(d, 1.0);
+            worst = worst.max((v - (1.0 - p.value(d))).abs());
+            let h = 1e-6;
+            let fd = (p.inverse_noise(d + h, 1.0).0 - p.inverse_noise(d - h, 1.0).0) / (2.0 * h);
+            assert!(
+                (fd - s).abs() < 1e-6 * s.abs().max(1e-3),
+                "d={d}: {fd} vs {s}"
+            );
+            let exact = p.value_and_slope(d).1;
+            assert!((s + exact).abs() < 1e-7, "d={d}: {s} vs {}", -exact);
+        }
+        assert!(worst < 3e-11, "{worst}");
+        assert!(p.inverse_noise(f64::NAN, 1.0).0.is_nan());
+        assert_eq!(p.inverse_noise(100.0, 1.0), (0.0, 0.0));
+        assert_eq!(p.inverse_noise(-100.0, 2.0), (0.25, 0.0));
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! iCR's reward over a control sequence, its gradient (Proposition 1) and Algorithm 1.
 
 use lidar_kinematics::se3;
-use nalgebra::{Isometry3, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Vector3, Vector6};
+use rayon::prelude::*;
 
 use super::fov::{FovSdf, Probit};
 use super::map::InformationMap;
@@ -232,13 +233,19 @@ impl<F: FovSdf> Icr<F> {
         self.roll_out(start, u);
         self.m.clear();
         self.m.resize(map.len(), 0.0);
-        for pose in &self.poses {
-            let inv = pose.inverse();
-            for (m, p) in self.m.iter_mut().zip(map.cells()) {
-                let (d, _) = self.fov.sdf(&(inv * p).coords);
-                *m += self.probit.inverse_noise(d, self.config.sigma).0;
-            }
-        }
+        let frames = frames(&self.poses);
+        let (fov, probit, sigma) = (&self.fov, &self.probit, self.config.sigma);
+        self.m
+            .par_chunks_mut(CHUNK)
+            .zip(map.cells().par_chunks(CHUNK))
+            .for_each(|(m, cells)| {
+                for (mj, p) in m.iter_mut().zip(cells) {
+                    for (rot, tr) in &frames {
+                        let (d, _) = fov.sdf(&(rot * p.coords + tr));
+                        *mj += probit.inverse_noise(d, sigma).0;
+                    }
+                }
+            });
         map.log_det_with(&self.m, None)
     }
 
@@ -267,32 +274,50 @@ impl<F: FovSdf> Icr<F> {
         self.m.resize(n, 0.0);
         self.slopes.clear();
         self.slopes.resize(n * k_len, CellSlope::default());
-        // Forward: M(T_s) and the slopes of V⁻¹ for every pose and cell.
-        for (s, pose) in self.poses.iter().enumerate() {
-            let inv = pose.inverse();
-            let row = &mut self.slopes[s * n..(s + 1) * n];
-            for ((m, p), out) in self.m.iter_mut().zip(map.cells()).zip(row) {
-                let q = (inv * p).coords;
-                let (d, gd) = self.fov.sdf(&q);
-                let (w, dw) = self.probit.inverse_noise(d, self.config.sigma);
-                *m += w;
-                *out = CellSlope { q, g: gd * dw };
-            }
-        }
+        // Forward: M(T_s) and the slopes of V⁻¹ for every cell and pose (cell-major), in
+        // fixed chunks of cells so the result does not depend on the thread count.
+        let frames = frames(&self.poses);
+        let (fov, probit, sigma) = (&self.fov, &self.probit, self.config.sigma);
+        self.m
+            .par_chunks_mut(CHUNK)
+            .zip(self.slopes.par_chunks_mut(CHUNK * k_len))
+            .zip(map.cells().par_chunks(CHUNK))
+            .for_each(|((m, slopes), cells)| {
+                for ((mj, p), row) in m.iter_mut().zip(cells).zip(slopes.chunks_mut(k_len)) {
+                    for ((rot, tr), out) in frames.iter().zip(row) {
+                        let q = rot * p.coords + tr;
+                        let (d, gd) = fov.sdf(&q);
+                        let (w, dw) = probit.inverse_noise(d, sigma);
+                        *mj += w;
+                        *out = CellSlope { q, g: gd * dw };
+                    }
+                }
+            });
         self.inv_diag.clear();
         self.inv_diag.resize(n, 0.0);
         let reward = map.log_det_with(&self.m, Some(&mut self.inv_diag))?;
-        // Γ_s, eqs. (23)–(24): tr(Y⁻¹ ∂M) = Σ_j (Y⁻¹)_jj ∂M_jj.
+        // Γ_s, eqs. (23)–(24): tr(Y⁻¹ ∂M) = Σ_j (Y⁻¹)_jj ∂M_jj; chunk sums added in order.
+        let partial: Vec<Vec<Vector6<f64>>> = self
+            .slopes
+            .par_chunks(CHUNK * k_len)
+            .zip(self.inv_diag.par_chunks(CHUNK))
+            .map(|(slopes, weights)| {
+                let mut acc = vec![Vector6::zeros(); k_len];
+                for (row, w) in slopes.chunks(k_len).zip(weights) {
+                    for (a, c) in acc.iter_mut().zip(row) {
+                        let g = c.g * *w;
+                        let qg = c.q.cross(&g);
+                        *a -= Vector6::new(g.x, g.y, g.z, qg.x, qg.y, qg.z);
+                    }
+                }
+                acc
+            })
+            .collect();
         let mut gamma = vec![Vector6::zeros(); k_len];
-        for (s, gs) in gamma.iter_mut().enumerate() {
-            let row = &self.slopes[s * n..(s + 1) * n];
-            let (mut lin, mut ang) = (Vector3::zeros(), Vector3::zeros());
-            for (c, w) in row.iter().zip(&self.inv_diag) {
-                let g = c.g * *w;
-                lin += g;
-                ang += c.q.cross(&g);
+        for acc in &partial {
+            for (g, a) in gamma.iter_mut().zip(acc) {
+                *g += a;
             }
-            *gs = -Vector6::new(lin.x, lin.y, lin.z, ang.x, ang.y, ang.z);
         }
         // Backward: Ψ_k = Ad(E_k⁻¹)ᵀ (Γ_{k+1} + Ψ_{k+1}), the Λ recursion (26) in adjoint form.
         let tau = self.config.tau;
@@ -351,6 +376,23 @@ impl<F: FovSdf> Icr<F> {
             best_iteration: best.1,
         })
     }
+}
+
+/// Cells per parallel chunk: fixed, so sums do not depend on the number of threads.
+const CHUNK: usize = 1024;
+
+/// World-to-body rotation matrices and translations of the poses.
+fn frames(poses: &[Isometry3<f64>]) -> Vec<(Matrix3<f64>, Vector3<f64>)> {
+    poses
+        .iter()
+        .map(|pose| {
+            let inv = pose.inverse();
+            (
+                inv.rotation.to_rotation_matrix().into_inner(),
+                inv.translation.vector,
+            )
+        })
+        .collect()
 }
 
 fn check_pose(pose: &Isometry3<f64>) -> Result<()> {

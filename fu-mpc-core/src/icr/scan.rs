@@ -255,15 +255,14 @@ impl IcrScan {
                 let pr = (rotated_from_world * p).coords;
                 let pl = mount_inv * Point3::from(pr);
                 let (d, g) = self.sdf(&pl.coords);
-                let (phi, slope) = self.probit.value_and_slope(d);
-                let w = 1.0 - phi;
-                if w <= 1e-12 && slope <= 1e-12 {
+                let (w, dw) = self.probit.inverse_noise(d, 1.0);
+                if w <= 1e-12 && dw.abs() <= 1e-12 {
                     continue;
                 }
                 info += n * n.transpose() * w;
                 // ∂p_L/∂θ = R_mount⁻¹ (−ẑ × p_rot): the rotation by −θ about the motor axis.
                 let dpl = mount_inv.rotation * (-Vector3::z().cross(&pr));
-                scratch.push((j, k, -slope * g.dot(&dpl)));
+                scratch.push((j, k, dw * g.dot(&dpl)));
             }
         }
         let chol = info.cholesky().ok_or(CoreError::NotPositiveDefinite {
