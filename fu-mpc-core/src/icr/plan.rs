@@ -5,7 +5,7 @@ use nalgebra::{Isometry3, Matrix3, Vector3, Vector6};
 use rayon::prelude::*;
 
 use super::fov::{FovSdf, Probit};
-use super::map::InformationMap;
+use super::map::{InformationMap, Prior};
 use crate::Result;
 use crate::error::{CoreError, invalid};
 
@@ -270,13 +270,50 @@ impl<F: FovSdf> Icr<F> {
         }
         let (n, k_len) = (map.len(), u.len());
         self.roll_out(start, u);
+        let frames = frames(&self.poses);
+        let (reward, gamma) = if let Prior::Diagonal(y0) = &map.prior {
+            fused_diagonal(
+                &frames,
+                &self.fov,
+                &self.probit,
+                self.config.sigma,
+                map.cells(),
+                y0,
+            )
+        } else {
+            self.two_pass(map, &frames, n, k_len)?
+        };
+        // Backward: Ψ_k = Ad(E_k⁻¹)ᵀ (Γ_{k+1} + Ψ_{k+1}), the Λ recursion (26) in adjoint form.
+        let tau = self.config.tau;
+        let mut psi = Vector6::zeros();
+        for k in (0..k_len).rev() {
+            let xi = u[k] * tau;
+            let step_inv = se3::exp(&xi).inverse();
+            psi = se3::adjoint(&step_inv).transpose() * (gamma[k] + psi);
+            // Lemma 1, eq. (28).
+            grad[k] = se3::left_jacobian(&xi).transpose() * psi * tau;
+        }
+        if !reward.is_finite() || !grad.iter().all(|g| g.iter().all(|v| v.is_finite())) {
+            return Err(CoreError::NonFinite { what: "reward" });
+        }
+        Ok(reward)
+    }
+
+    /// Reward and Γ_s for a dense prior: M and the slopes first, then (Y_K⁻¹)_jj from the
+    /// factorisation, then Γ.
+    fn two_pass(
+        &mut self,
+        map: &InformationMap,
+        frames: &[(Matrix3<f64>, Vector3<f64>)],
+        n: usize,
+        k_len: usize,
+    ) -> Result<(f64, Vec<Vector6<f64>>)> {
         self.m.clear();
         self.m.resize(n, 0.0);
         self.slopes.clear();
         self.slopes.resize(n * k_len, CellSlope::default());
         // Forward: M(T_s) and the slopes of V⁻¹ for every cell and pose (cell-major), in
         // fixed chunks of cells so the result does not depend on the thread count.
-        let frames = frames(&self.poses);
         let (fov, probit, sigma) = (&self.fov, &self.probit, self.config.sigma);
         self.m
             .par_chunks_mut(CHUNK)
@@ -319,20 +356,7 @@ impl<F: FovSdf> Icr<F> {
                 *g += a;
             }
         }
-        // Backward: Ψ_k = Ad(E_k⁻¹)ᵀ (Γ_{k+1} + Ψ_{k+1}), the Λ recursion (26) in adjoint form.
-        let tau = self.config.tau;
-        let mut psi = Vector6::zeros();
-        for k in (0..k_len).rev() {
-            let xi = u[k] * tau;
-            let step_inv = se3::exp(&xi).inverse();
-            psi = se3::adjoint(&step_inv).transpose() * (gamma[k] + psi);
-            // Lemma 1, eq. (28).
-            grad[k] = se3::left_jacobian(&xi).transpose() * psi * tau;
-        }
-        if !reward.is_finite() || !grad.iter().all(|g| g.iter().all(|v| v.is_finite())) {
-            return Err(CoreError::NonFinite { what: "reward" });
-        }
-        Ok(reward)
+        Ok((reward, gamma))
     }
 
     /// Algorithm 1: `iterations` steps U ← U + Γ ∂r/∂U, eq. (22), each followed by the
@@ -380,6 +404,56 @@ impl<F: FovSdf> Icr<F> {
 
 /// Cells per parallel chunk: fixed, so sums do not depend on the number of threads.
 const CHUNK: usize = 1024;
+
+/// Reward and Γ_s for a diagonal prior in one pass: (Y_K⁻¹)_jj = 1/(y₀ⱼ + mⱼ) is known as
+/// soon as a cell's K poses are done, so its slopes never leave the cache.
+fn fused_diagonal<F: FovSdf>(
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+    fov: &F,
+    probit: &Probit,
+    sigma: f64,
+    cells: &[nalgebra::Point3<f64>],
+    y0: &[f64],
+) -> (f64, Vec<Vector6<f64>>) {
+    let k_len = frames.len();
+    let partial: Vec<(f64, Vec<Vector6<f64>>)> = cells
+        .par_chunks(CHUNK)
+        .zip(y0.par_chunks(CHUNK))
+        .map(|(cells, y0)| {
+            let mut acc = vec![Vector6::zeros(); k_len];
+            let mut row = vec![CellSlope::default(); k_len];
+            let mut log_det = 0.0;
+            for (p, y) in cells.iter().zip(y0) {
+                let mut m = 0.0;
+                for ((rot, tr), out) in frames.iter().zip(row.iter_mut()) {
+                    let q = rot * p.coords + tr;
+                    let (d, gd) = fov.sdf(&q);
+                    let (w, dw) = probit.inverse_noise(d, sigma);
+                    m += w;
+                    *out = CellSlope { q, g: gd * dw };
+                }
+                let yk = y + m;
+                log_det += yk.ln();
+                let weight = 1.0 / yk;
+                for (a, c) in acc.iter_mut().zip(&row) {
+                    let g = c.g * weight;
+                    let qg = c.q.cross(&g);
+                    *a -= Vector6::new(g.x, g.y, g.z, qg.x, qg.y, qg.z);
+                }
+            }
+            (log_det, acc)
+        })
+        .collect();
+    let mut gamma = vec![Vector6::zeros(); k_len];
+    let mut reward = 0.0;
+    for (l, acc) in &partial {
+        reward += l;
+        for (g, a) in gamma.iter_mut().zip(acc) {
+            *g += a;
+        }
+    }
+    (reward, gamma)
+}
 
 /// World-to-body rotation matrices and translations of the poses.
 fn frames(poses: &[Isometry3<f64>]) -> Vec<(Matrix3<f64>, Vector3<f64>)> {
@@ -544,8 +618,21 @@ mod tests {
         let mut grad = vec![Vector6::zeros(); 4];
         icr.reward_and_gradient(&map, &start, &u, &mut grad)
             .unwrap();
-        let w = icr.inv_diag.clone();
         let tau = cfg.tau;
+        // (Y_K⁻¹)_jj of the diagonal prior from the information of each pose.
+        let (mut m, mut tmp) = (vec![0.0; map.len()], vec![0.0; map.len()]);
+        let mut pose = start;
+        for uk in &u {
+            pose *= se3::exp(&(uk * tau));
+            icr.information_at(&map, &pose, &mut tmp).unwrap();
+            m.iter_mut().zip(&tmp).for_each(|(a, b)| *a += b);
+        }
+        let w: Vec<f64> = map
+            .prior_diagonal()
+            .iter()
+            .zip(&m)
+            .map(|(y, m)| 1.0 / (y + m))
+            .collect();
         let exps: Vec<Matrix4<f64>> = u.iter().map(|uk| se3::exp_matrix(&(uk * tau))).collect();
         let mut poses = vec![start.to_homogeneous()];
         for e in &exps {
