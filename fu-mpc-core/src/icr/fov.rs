@@ -111,11 +111,21 @@ impl Triangle {
             }
             return (side[best], self.normals[best]);
         }
-        // Outside: the nearest point of the boundary, on an edge (D_i) or at a corner (P_i).
+        // Outside. The distance is at least every positive side value (the triangle lies in
+        // each half-plane), so an edge the point is outside of whose foot lies on it is the
+        // nearest feature (D_i of Lemma 2): no square root needed.
+        for (i, (p, e, inv_len2)) in self.edges.iter().enumerate() {
+            if side[i] > 0.0 {
+                let t = (q - p).dot(e) * inv_len2;
+                if (0.0..=1.0).contains(&t) {
+                    return (side[i], self.normals[i]);
+                }
+            }
+        }
+        // Otherwise the nearest corner (P_i).
         let mut best = (f64::INFINITY, Vector2::zeros());
-        for (p, e, inv_len2) in &self.edges {
-            let t = ((q - p).dot(e) * inv_len2).clamp(0.0, 1.0);
-            let diff = q - (p + e * t);
+        for c in &self.corners {
+            let diff = q - c;
             let d2 = diff.norm_squared();
             if d2 < best.0 {
                 best = (d2, diff);

@@ -5,12 +5,16 @@ use core::f64::consts::{PI, TAU};
 
 use lidar_kinematics::{KinematicChain, LidarSensor, MotorLimits, motor_rotation};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+use rayon::prelude::*;
 
 use super::fov::Probit;
 use crate::Result;
 use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
 use crate::error::{CoreError, invalid};
 use crate::fisher::normals;
+
+/// What one horizon step adds: its information and, per point seen, (index, ∂w/∂θ).
+type StepTerms = (Matrix3<f64>, Vec<(usize, f64)>);
 
 /// Settings of [`IcrScan`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -237,33 +241,48 @@ impl IcrScan {
         reference: &[Isometry3<f64>],
         theta: &[f64],
         grad: &mut [f64],
-        scratch: &mut Vec<(usize, usize, f64)>,
     ) -> Result<f64> {
         let e = self.chain.extrinsics();
         let (base, mount) = (e.motor_base_in_body(), e.lidar_in_motor());
         let mount_inv = mount.inverse();
-        let mut info = Matrix3::identity() * self.config.epsilon;
-        scratch.clear();
-        for k in 1..theta.len() {
-            // Points in the motor base frame (fixed over θ), then rotated and mounted.
-            // World → motor base → rotated by −θ_k about the motor axis, in one isometry.
-            let rotated_from_world = Isometry3::from_parts(
-                nalgebra::Translation3::identity(),
-                motor_rotation(theta[k]).inverse(),
-            ) * (reference[k] * base).inverse();
-            for (j, (p, n)) in self.points.iter().zip(&self.normals).enumerate() {
-                let pr = (rotated_from_world * p).coords;
-                let pl = mount_inv * Point3::from(pr);
-                let (d, g) = self.sdf(&pl.coords);
-                let (w, dw) = self.probit.inverse_noise(d, 1.0);
-                if w <= 1e-12 && dw.abs() <= 1e-12 {
-                    continue;
+        let m_rot = mount_inv.rotation.to_rotation_matrix().into_inner();
+        let m_tr = mount_inv.translation.vector;
+        // Per step (in parallel, combined in step order): the information the step adds and,
+        // per point, ∂w_j/∂θ_k.
+        let per_step: Vec<StepTerms> = (1..theta.len())
+            .into_par_iter()
+            .map(|k| {
+                // World → motor base → rotated by −θ_k about the motor axis.
+                let rotated_from_world = Isometry3::from_parts(
+                    nalgebra::Translation3::identity(),
+                    motor_rotation(theta[k]).inverse(),
+                ) * (reference[k] * base).inverse();
+                let r_rot = rotated_from_world
+                    .rotation
+                    .to_rotation_matrix()
+                    .into_inner();
+                let r_tr = rotated_from_world.translation.vector;
+                let mut info = Matrix3::zeros();
+                let mut slopes = Vec::new();
+                for (j, (p, n)) in self.points.iter().zip(&self.normals).enumerate() {
+                    let pr = r_rot * p.coords + r_tr;
+                    let pl = m_rot * pr + m_tr;
+                    let (d, g) = self.sdf(&pl);
+                    let (w, dw) = self.probit.inverse_noise(d, 1.0);
+                    if w <= 1e-12 && dw.abs() <= 1e-12 {
+                        continue;
+                    }
+                    info += n * n.transpose() * w;
+                    // ∂p_L/∂θ = R_mount⁻¹ (−ẑ × p_rot): the rotation by −θ about the motor axis.
+                    let dpl = m_rot * Vector3::new(pr.y, -pr.x, 0.0);
+                    slopes.push((j, dw * g.dot(&dpl)));
                 }
-                info += n * n.transpose() * w;
-                // ∂p_L/∂θ = R_mount⁻¹ (−ẑ × p_rot): the rotation by −θ about the motor axis.
-                let dpl = mount_inv.rotation * (-Vector3::z().cross(&pr));
-                scratch.push((j, k, dw * g.dot(&dpl)));
-            }
+                (info, slopes)
+            })
+            .collect();
+        let mut info = Matrix3::identity() * self.config.epsilon;
+        for (f, _) in &per_step {
+            info += f;
         }
         let chol = info.cholesky().ok_or(CoreError::NotPositiveDefinite {
             what: "pose information",
@@ -272,9 +291,11 @@ impl IcrScan {
         let inv = chol.inverse();
         grad.fill(0.0);
         // ∂/∂θ_k log det(εI + F) = Σ_j (∂w_j/∂θ_k) n_jᵀ (εI + F)⁻¹ n_j.
-        for &(j, k, dw) in scratch.iter() {
-            let n = &self.normals[j];
-            grad[k] += dw * n.dot(&(inv * n));
+        for (g, (_, slopes)) in grad[1..].iter_mut().zip(&per_step) {
+            *g = slopes
+                .iter()
+                .map(|&(j, dw)| dw * self.normals[j].dot(&(inv * self.normals[j])))
+                .sum();
         }
         Ok(logdet)
     }
@@ -341,9 +362,8 @@ impl ScanController for IcrScan {
         let mut theta = vec![0.0; n + 1];
         let mut grad = vec![0.0; n + 1];
         let mut ga = vec![0.0; n];
-        let mut scratch = Vec::new();
         self.project_and_roll(omega0, theta0, &mut a, &mut theta);
-        let value = self.objective(input.reference, &theta, &mut grad, &mut scratch)?;
+        let value = self.objective(input.reference, &theta, &mut grad)?;
         let mut best = (value, a.clone());
         let mut status = ScanStatus::IterationLimit;
         for _ in 0..self.config.iterations {
@@ -364,7 +384,7 @@ impl ScanController for IcrScan {
                 *t += self.config.step * g / scale;
             }
             self.project_and_roll(omega0, theta0, &mut trial, &mut theta);
-            let v = self.objective(input.reference, &theta, &mut grad, &mut scratch)?;
+            let v = self.objective(input.reference, &theta, &mut grad)?;
             if v > best.0 {
                 best = (v, trial.clone());
             }
@@ -430,9 +450,7 @@ mod tests {
             .collect();
         let theta: Vec<f64> = (0..=n).map(|k| 0.3 + 0.25 * k as f64).collect();
         let mut grad = vec![0.0; n + 1];
-        let mut scratch = Vec::new();
-        c.objective(&reference, &theta, &mut grad, &mut scratch)
-            .unwrap();
+        c.objective(&reference, &theta, &mut grad).unwrap();
         let mut tmp = vec![0.0; n + 1];
         let h = 1e-6;
         let mut checked = 0;
@@ -440,11 +458,8 @@ mod tests {
             let (mut up, mut dn) = (theta.clone(), theta.clone());
             up[k] += h;
             dn[k] -= h;
-            let fd = (c
-                .objective(&reference, &up, &mut tmp, &mut scratch)
-                .unwrap()
-                - c.objective(&reference, &dn, &mut tmp, &mut scratch)
-                    .unwrap())
+            let fd = (c.objective(&reference, &up, &mut tmp).unwrap()
+                - c.objective(&reference, &dn, &mut tmp).unwrap())
                 / (2.0 * h);
             assert!(
                 (fd - grad[k]).abs() < 1e-5 * fd.abs().max(1e-3),
@@ -516,14 +531,14 @@ mod tests {
             fisher: None,
         };
         let mut theta = vec![0.0; n + 1];
-        let (mut g, mut s) = (vec![0.0; n + 1], Vec::new());
+        let mut g = vec![0.0; n + 1];
         let mut zero = vec![0.0; n];
         c.project_and_roll(0.0, PI, &mut zero, &mut theta);
-        let before = c.objective(&reference, &theta, &mut g, &mut s).unwrap();
+        let before = c.objective(&reference, &theta, &mut g).unwrap();
         c.command(&input).unwrap();
         let mut plan = c.plan.clone();
         c.project_and_roll(0.0, PI, &mut plan, &mut theta);
-        let after = c.objective(&reference, &theta, &mut g, &mut s).unwrap();
+        let after = c.objective(&reference, &theta, &mut g).unwrap();
         assert!(after > before, "{after} vs {before}");
 
         let bad = ScanInput {
