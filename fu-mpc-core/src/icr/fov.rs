@@ -216,10 +216,26 @@ impl FovSdf for Cone {
 /// assert!((phi.value(0.0) - 0.00234).abs() < 1e-5);
 /// assert!(phi.value(10.0) > 0.999_999);
 /// ```
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Clone, Copy)]
 pub struct Probit {
     kappa: f64,
     inv_scale: f64,
+    /// The shared table of ½ erfc, fetched once here rather than per evaluation.
+    table: &'static [(f64, f64)],
+}
+
+impl core::fmt::Debug for Probit {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Probit")
+            .field("kappa", &self.kappa)
+            .finish()
+    }
+}
+
+impl PartialEq for Probit {
+    fn eq(&self, other: &Self) -> bool {
+        self.kappa == other.kappa
+    }
 }
 
 impl Probit {
@@ -235,6 +251,7 @@ impl Probit {
         Ok(Self {
             kappa,
             inv_scale: 1.0 / (2.0 * kappa).sqrt(),
+            table: erfc_table(),
         })
     }
 
@@ -265,7 +282,7 @@ impl Probit {
     #[inline]
     pub fn inverse_noise(&self, d: f64, sigma: f64) -> (f64, f64) {
         let w = 1.0 / (sigma * sigma);
-        let (v, s) = half_erfc(d * self.inv_scale - 2.0);
+        let (v, s) = half_erfc(self.table, d * self.inv_scale - 2.0);
         (v * w, s * self.inv_scale * w)
     }
 }
@@ -295,7 +312,7 @@ fn erfc_table() -> &'static [(f64, f64)] {
 /// ½ erfc(y) and its derivative by cubic Hermite interpolation of [`erfc_table`]; 1 and 0
 /// below −6, 0 and 0 above 6 (erfc(6) ≈ 2e-17). NaN propagates.
 #[inline]
-fn half_erfc(y: f64) -> (f64, f64) {
+fn half_erfc(table: &[(f64, f64)], y: f64) -> (f64, f64) {
     if y.is_nan() {
         return (f64::NAN, f64::NAN);
     }
@@ -305,7 +322,6 @@ fn half_erfc(y: f64) -> (f64, f64) {
     if y >= ERFC_LIMIT {
         return (0.0, 0.0);
     }
-    let table = erfc_table();
     let x = (y + ERFC_LIMIT) * ERFC_STEPS_PER_UNIT;
     // 0 ≤ x < 1536.
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
