@@ -13,6 +13,42 @@ use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
 use crate::error::{CoreError, invalid};
 use crate::fisher::normals;
 
+/// The sensor's field of view and range, prepared for [`IcrScan::sdf`].
+#[derive(Debug, Clone, Copy)]
+struct Gate {
+    r_min: f64,
+    r_max: f64,
+    sin_el_min: f64,
+    cos_el_min: f64,
+    sin_el_max: f64,
+    cos_el_max: f64,
+    /// cos and sin of the azimuth centre and of the half width; `None` for all azimuths.
+    azimuth: Option<(f64, f64, f64, f64)>,
+}
+
+impl Gate {
+    fn new(sensor: &LidarSensor) -> Self {
+        let (fov, range) = (sensor.field_of_view(), sensor.range());
+        let (sin_el_min, cos_el_min) = fov.elevation_min().sin_cos();
+        let (sin_el_max, cos_el_max) = fov.elevation_max().sin_cos();
+        let azimuth = (!fov.is_full_azimuth()).then(|| {
+            let half = 0.5 * fov.azimuth_width();
+            let (s, c) = (fov.azimuth_min() + half).sin_cos();
+            let (sin_h, cos_h) = half.sin_cos();
+            (c, s, cos_h, sin_h)
+        });
+        Self {
+            r_min: range.min(),
+            r_max: range.max(),
+            sin_el_min,
+            cos_el_min,
+            sin_el_max,
+            cos_el_max,
+            azimuth,
+        }
+    }
+}
+
 /// What one horizon step adds: its information and, per point seen, (index, ∂w/∂θ).
 type StepTerms = (Matrix3<f64>, Vec<(usize, f64)>);
 
@@ -97,9 +133,9 @@ impl IcrScanConfig {
 /// motor maximise log det(εI + Σ_k Σ_j w_j(θ_k) n_j n_jᵀ), the point-to-plane information of
 /// the surface normals n_j the LiDAR sees along the reference, where the hard visibility of the
 /// Fisher table is replaced by the differentiable weight w = 1 − Φ(d) of eq. (21) over a signed
-/// distance d to the sensor's field of view and range (max of the elevation, azimuth and range
-/// margins, the angular ones times the range). Each ascent step is projected onto the motor
-/// limits (|a| ≤ u_max, then |ω| within bounds along the rollout).
+/// distance d to the sensor's field of view and range (the largest of the distances to its
+/// elevation cones, azimuth half-planes and range shells). Each ascent step is projected onto
+/// the motor limits (|a| ≤ u_max, then |ω| within bounds along the rollout).
 ///
 /// The cloud is given by [`IcrScan::set_cloud`] (like [`FisherTable::build`](crate::FisherTable::build),
 /// once per new local map); without points the controller holds its speed and reports
@@ -138,6 +174,7 @@ pub struct IcrScan {
     config: IcrScanConfig,
     chain: KinematicChain,
     sensor: LidarSensor,
+    gate: Gate,
     probit: Probit,
     points: Vec<Point3<f64>>,
     normals: Vec<Vector3<f64>>,
@@ -154,6 +191,7 @@ impl IcrScan {
         Ok(Self {
             config,
             chain,
+            gate: Gate::new(&sensor),
             sensor,
             probit: Probit::new(config.kappa)?,
             points: Vec::new(),
@@ -165,6 +203,11 @@ impl IcrScan {
     /// The settings.
     pub fn config(&self) -> &IcrScanConfig {
         &self.config
+    }
+
+    /// The LiDAR whose field of view and range weight the points.
+    pub fn sensor(&self) -> &LidarSensor {
+        &self.sensor
     }
 
     /// Sets the local cloud (world frame): an even subsample of at most `max_points` finite
@@ -191,44 +234,49 @@ impl IcrScan {
     }
 
     /// The signed distance \[m\] of a LiDAR-frame point to the field of view and range, and its
-    /// gradient: the largest of the margins r(β_min − β), r(β − β_max), r(|α − α_c| − w/2),
-    /// r − r_max and r_min − r (negative inside).
+    /// gradient: the largest of the distances to the elevation cones, r sin(β_min − β) and
+    /// r sin(β − β_max), to the azimuth half-planes, ρ sin(|α − α_c| − w/2), and to the range
+    /// shells, r − r_max and r_min − r (negative inside). No trigonometry per point: the sines
+    /// expand into the coordinates with the bounds' sines and cosines.
     fn sdf(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>) {
+        let g = &self.gate;
         let r = p.norm();
         if r <= 0.0 {
-            return (self.sensor.range().min(), Vector3::zeros());
+            return (g.r_min, Vector3::zeros());
         }
         let u = p / r;
-        let fov = self.sensor.field_of_view();
-        let range = self.sensor.range();
-        let mut best = (range.min() - r, -u);
-        let mut take = |d: f64, g: Vector3<f64>| {
+        let mut best = (g.r_min - r, -u);
+        let mut take = |d: f64, grad: Vector3<f64>| {
             if d > best.0 {
-                best = (d, g);
+                best = (d, grad);
             }
         };
-        take(r - range.max(), u);
-        let rho = p.x.hypot(p.y);
+        take(r - g.r_max, u);
+        let rho = (p.x * p.x + p.y * p.y).sqrt();
         if rho > 0.0 {
-            let el = (p.z / r).clamp(-1.0, 1.0).asin();
-            // ∂β/∂p = (ẑ − (p_z / r²) p) / ρ.
-            let d_el = (Vector3::z() - p * (p.z / (r * r))) / rho;
+            let drho = Vector3::new(p.x / rho, p.y / rho, 0.0);
+            // r sin(β_min − β) = ρ sin β_min − z cos β_min, and the same for β_max.
             take(
-                r * (fov.elevation_min() - el),
-                u * (fov.elevation_min() - el) - d_el * r,
+                rho * g.sin_el_min - p.z * g.cos_el_min,
+                drho * g.sin_el_min - Vector3::z() * g.cos_el_min,
             );
             take(
-                r * (el - fov.elevation_max()),
-                u * (el - fov.elevation_max()) + d_el * r,
+                p.z * g.cos_el_max - rho * g.sin_el_max,
+                Vector3::z() * g.cos_el_max - drho * g.sin_el_max,
             );
-            if !fov.is_full_azimuth() {
-                let half = 0.5 * fov.azimuth_width();
-                let centre = fov.azimuth_min() + half;
-                let az = p.y.atan2(p.x);
-                let delta = (az - centre + PI).rem_euclid(TAU) - PI;
-                let d_az = Vector3::new(-p.y, p.x, 0.0) / (rho * rho);
-                let m = delta.abs() - half;
-                take(r * m, u * m + d_az * (r * delta.signum()));
+            if let Some((c, s, cos_h, sin_h)) = g.azimuth {
+                // In the wedge's frame: x′ along its centre; ρ sin(|δ| − h) = |y′| cos h − x′ sin h.
+                let x1 = p.x * c + p.y * s;
+                let y1 = -p.x * s + p.y * c;
+                let sign = if y1 >= 0.0 { 1.0 } else { -1.0 };
+                take(
+                    y1.abs() * cos_h - x1 * sin_h,
+                    Vector3::new(
+                        -s * sign * cos_h - c * sin_h,
+                        c * sign * cos_h - s * sin_h,
+                        0.0,
+                    ),
+                );
             }
         }
         best
