@@ -1,5 +1,5 @@
 //! Solves one TSPLIB instance and prints one JSON line:
-//! `{"name":…,"n":…,"length":…,"lower_bound":…,"millis":…}` (the closed tour's length).
+//! `{"name":…,"n":…,"length":…,"lower_bound":…,"trials":…,"millis":…}` (the closed tour's length).
 //!
 //! Run with `cargo run --release -p topo-tsp --example tsplib -- FILE.atsp [--seed S] [--time-limit-ms T]`.
 #![allow(clippy::print_stdout, clippy::print_stderr)]
@@ -59,11 +59,12 @@ fn run() -> Result<String, String> {
     .map_err(|e| e.to_string())?;
     let millis = start.elapsed().as_secs_f64() * 1e3;
     Ok(format!(
-        "{{\"name\":\"{}\",\"n\":{},\"length\":{},\"lower_bound\":{:.1},\"millis\":{:.1}}}",
+        "{{\"name\":\"{}\",\"n\":{},\"length\":{},\"lower_bound\":{:.1},\"trials\":{},\"millis\":{:.1}}}",
         inst.name,
         inst.matrix.len(),
         sol.tour.length,
         sol.lower_bound,
+        sol.trials,
         millis
     ))
 }

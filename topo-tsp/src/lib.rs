@@ -46,6 +46,7 @@
 #![deny(missing_docs)]
 #![warn(rustdoc::broken_intra_doc_links)]
 
+mod assignment;
 mod bound;
 mod cost;
 mod error;

@@ -2,7 +2,10 @@
 //! sequential 3-opt steps with don't-look bits, iterated with double-bridge kicks and restarts.
 //!
 //! The candidate sets and the lower bound come from the Held–Karp machinery of
-//! [`crate::held_karp_bound`]; the local search uses segment insertion (Or-opt, segments of
+//! [`crate::held_karp_bound`] and from the assignment relaxation (its value is a second lower
+//! bound; when it is at least as tight as Held–Karp, as on instances whose optimal tour is
+//! nearly the optimal set of cycles, its least reduced-cost arcs join the candidates and
+//! Karp's patching of its cycles is the first tour); the local search uses segment insertion (Or-opt, segments of
 //! 1–3 nodes), 2-opt with reversal, whose asymmetric cost change comes from prefix sums of the
 //! forward and backward arc costs, and `Chain`, the asymmetric Lin–Kernighan of
 //! Kanellakis–Papadimitriou. A trial kicks the current tour with a double bridge and improves it
@@ -12,6 +15,7 @@
 //! length reaches the lower bound, rounded up when every cost is an integer).
 //! Everything is seeded: the same instance, settings and seed give the same tour.
 
+use crate::assignment::{assignment, patch};
 use crate::bound::{BoundConfig, alpha_candidates, held_karp_bound};
 use crate::error::{Result, TspError};
 use crate::exact::Tour;
@@ -91,12 +95,13 @@ impl SolverConfig {
     }
 }
 
-/// A solved instance: the best tour, the Held–Karp lower bound, and the trials run.
+/// A solved instance: the best tour, a lower bound, and the trials run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solution {
     /// The best tour found (closed length for [`solve`], open length for [`solve_open`]).
     pub tour: Tour,
-    /// The Held–Karp lower bound on the closed tour of the solved matrix.
+    /// A lower bound on the closed tour of the solved matrix: the larger of the Held–Karp
+    /// bound and the assignment bound.
     pub lower_bound: f64,
     /// Trials run (kicks or restarts after the first local optimum).
     pub trials: usize,
@@ -312,6 +317,10 @@ const RUN_STALL: usize = 100;
 
 /// Double bridges applied to the best tour at a restart.
 const RESTART_KICKS: usize = 8;
+
+/// Arcs of least reduced cost added to each candidate list when the assignment bound guides
+/// the search.
+const AP_CANDIDATES: usize = 5;
 
 /// First-level continuations of a chain that are followed deeper (the best by partial gain).
 const FIRST_BREADTH: usize = 3;
@@ -662,26 +671,49 @@ pub fn solve(
                 .collect()
         })
         .collect();
+    // The assignment relaxation: a second lower bound, its cheapest reduced-cost arcs as extra
+    // candidates, and Karp's patching of its cycles as the first tour.
+    let tol = |x: f64| 1e-9 * x.abs().max(1.0);
+    let ap = assignment(m);
+    let mut cand = cand;
+    let mut lower_bound = bound.lower_bound;
+    let mut order = Vec::with_capacity(n);
+    // When the assignment bound is at least as tight as Held–Karp (the cycles of the assignment
+    // are then nearly a tour), its reduced costs and its patched cycles guide the search.
+    if let Some(ap) = ap
+        .as_ref()
+        .filter(|ap| ap.cost >= bound.lower_bound - tol(bound.lower_bound))
+    {
+        for (i, list) in cand.iter_mut().enumerate() {
+            let mut extra: Vec<(f64, usize)> = (0..n)
+                .filter(|&j| j != i)
+                .map(|j| (ap.reduced(m, i, j), j))
+                .collect();
+            extra.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            for &(_, j) in extra.iter().take(AP_CANDIDATES) {
+                if !list.contains(&j) {
+                    list.push(j);
+                }
+            }
+        }
+        let succ = patch(m, &ap.succ);
+        let mut x = 0;
+        for _ in 0..n {
+            order.push(x);
+            x = succ[x];
+        }
+    }
+    if let Some(ap) = &ap {
+        lower_bound = lower_bound.max(ap.cost);
+    }
     let mut pred_cand = vec![Vec::new(); n];
     for (i, list) in cand.iter().enumerate() {
         for &j in list {
             pred_cand[j].push(i);
         }
     }
-    // Nearest-neighbour start through the candidates (any city when they are used up).
-    let mut seen = vec![false; n];
-    let mut order = vec![0];
-    seen[0] = true;
-    while order.len() < n {
-        let cur = order[order.len() - 1];
-        let next = cand[cur].iter().copied().find(|&j| !seen[j]).or_else(|| {
-            (0..n)
-                .filter(|&j| !seen[j])
-                .min_by(|&a, &b| m.cost(cur, a).total_cmp(&m.cost(cur, b)))
-        });
-        let Some(next) = next else { break };
-        seen[next] = true;
-        order.push(next);
+    if order.len() != n {
+        order = nearest_neighbour(m, &cand);
     }
     let mut st = State {
         m,
@@ -698,7 +730,7 @@ pub fn solve(
     let mut best_len = st.length();
     let mut rng = Rng(cfg.seed);
     let mut trials = 0;
-    let optimal = proven_optimal(m, bound.lower_bound);
+    let optimal = proven_optimal(m, lower_bound);
     let stall_limit = cfg.stall_trials.saturating_add(5 * n);
     // Trials since the best tour last improved, and since the current tour last improved.
     let mut stall = 0;
@@ -717,7 +749,6 @@ pub fn solve(
     };
     let mut cur = best.clone();
     let mut cur_len = best_len;
-    let tol = |x: f64| 1e-9 * x.abs().max(1.0);
     while trials < max_trials
         && (trials < min_trials || stall < window)
         && stall < stall_limit
@@ -792,9 +823,29 @@ pub fn solve(
             length: m.closed_length(&best),
             order: best,
         },
-        lower_bound: bound.lower_bound,
+        lower_bound,
         trials,
     })
+}
+
+/// Nearest-neighbour tour from city 0 through the candidates (any city when they are used up).
+fn nearest_neighbour(m: &CostMatrix, cand: &[Vec<usize>]) -> Vec<usize> {
+    let n = m.len();
+    let mut seen = vec![false; n];
+    let mut order = vec![0];
+    seen[0] = true;
+    while order.len() < n {
+        let cur = order[order.len() - 1];
+        let next = cand[cur].iter().copied().find(|&j| !seen[j]).or_else(|| {
+            (0..n)
+                .filter(|&j| !seen[j])
+                .min_by(|&a, &b| m.cost(cur, a).total_cmp(&m.cost(cur, b)))
+        });
+        let Some(next) = next else { break };
+        seen[next] = true;
+        order.push(next);
+    }
+    order
 }
 
 /// Solves the open tour (9) from node 0: [`solve`] on the matrix with free arcs into node 0,
