@@ -19,10 +19,10 @@
 //! - [`held_karp_bound`]: the Held–Karp lower bound by subgradient optimisation over 1-trees of
 //!   the symmetric transform, and [`alpha_candidates`]: α-nearness candidate lists;
 //! - [`solve`] and [`solve_open`]: a seeded heuristic ATSP solver on the α-nearness candidates
-//!   (2-opt, Or-opt and variable-depth sequential 3-opt chains with don't-look bits, iterated
-//!   with double-bridge kicks and restarts), budgets by trials and by a caller-supplied stop
-//!   predicate. It is not yet LKH's 5-opt: with default settings it reaches 15 of the 19
-//!   TSPLIB ATSP optima (see the README).
+//!   and, when it is tight, the assignment relaxation (2-opt, Or-opt and a variable-depth search
+//!   over sequential pure 5-opt basic moves with don't-look bits, iterated with double-bridge
+//!   kicks and restarts), budgets by trials and by a caller-supplied stop predicate. With
+//!   default settings it reaches 18 of the 19 TSPLIB ATSP optima (see the README).
 //!
 //! # Example
 //! ```

@@ -1,17 +1,20 @@
-//! A heuristic ATSP solver: α-nearness candidates, 2-opt, Or-opt and a variable-depth chain of
-//! sequential 3-opt steps with don't-look bits, iterated with double-bridge kicks and restarts.
+//! A heuristic ATSP solver: α-nearness candidates, 2-opt, Or-opt and a variable-depth search
+//! over sequential pure 5-opt basic moves with don't-look bits, iterated with double-bridge kicks
+//! and restarts.
 //!
 //! The candidate sets and the lower bound come from the Held–Karp machinery of
 //! [`crate::held_karp_bound`] and from the assignment relaxation (its value is a second lower
 //! bound; when it is at least as tight as Held–Karp, as on instances whose optimal tour is
 //! nearly the optimal set of cycles, its least reduced-cost arcs join the candidates and
-//! Karp's patching of its cycles is the first tour); the local search uses segment insertion (Or-opt, segments of
-//! 1–3 nodes), 2-opt with reversal, whose asymmetric cost change comes from prefix sums of the
-//! forward and backward arc costs, and `Chain`, the asymmetric Lin–Kernighan of
-//! Kanellakis–Papadimitriou. A trial kicks the current tour with a double bridge and improves it
-//! again; a current tour that no kick has improved for a while is replaced by the best tour
-//! perturbed by several double bridges. The automatic budget runs at least n trials and goes on
-//! while the best tour still improves; it stops early when the tour is proven optimal (its
+//! Karp's patching of its cycles is the first tour). The local search uses segment insertion
+//! (Or-opt, segments of 1–3 nodes), 2-opt with reversal, whose asymmetric cost change comes
+//! from prefix sums of the forward and backward arc costs, and the moves of LKH on the 2n-node
+//! transform written directly on the asymmetric tour: sequential pure k-opt basic moves
+//! (k ≤ 5, no segment reversed), chained Lin–Kernighan style (see `State::kopt`).
+//! A trial kicks the current tour with a double bridge and improves it again; a current tour
+//! that 0.3 n kicks in a row have not improved is replaced by a new local optimum from a
+//! randomised walk along the candidates. The automatic budget runs at least n trials and goes
+//! on while the best tour still improves; it stops early when the tour is proven optimal (its
 //! length reaches the lower bound, rounded up when every cost is an integer).
 //! Everything is seeded: the same instance, settings and seed give the same tour.
 
@@ -48,8 +51,8 @@ pub struct SolverConfig {
     pub stall_trials: usize,
     /// Seed of the kicks. Default 1.
     pub seed: u64,
-    /// Sequential 3-opt steps per chain of the variable-depth search (0 turns the chain off,
-    /// leaving 2-opt and Or-opt). Default 3.
+    /// Basic moves (sequential pure k-opt, k ≤ 5) chained by the variable-depth search: 1 makes
+    /// improving basic moves only, 0 turns the search off, leaving 2-opt and Or-opt. Default 2.
     pub max_depth: usize,
     /// Settings of the lower bound that also yields the candidates.
     pub bound: BoundConfig,
@@ -63,7 +66,7 @@ impl Default for SolverConfig {
             trials_per_city: 1,
             stall_trials: usize::MAX,
             seed: 1,
-            max_depth: 3,
+            max_depth: 2,
             bound: BoundConfig::default(),
         }
     }
@@ -133,6 +136,13 @@ struct State<'a> {
     /// forward costs, and the costs of the same arcs traversed backwards.
     fwd: Vec<f64>,
     bwd: Vec<f64>,
+    /// Whether `fwd` and `bwd` describe `order`.
+    sums_ok: bool,
+    /// The order before the tentative moves of a k-opt chain, and whether its sums were valid.
+    saved: Vec<usize>,
+    saved_sums_ok: bool,
+    /// A spare order buffer.
+    scratch: Vec<usize>,
 }
 
 impl State<'_> {
@@ -160,18 +170,29 @@ impl State<'_> {
     }
 
     fn set_order(&mut self, order: Vec<usize>) {
-        let n = order.len();
-        for (i, &v) in order.iter().enumerate() {
+        self.order = order;
+        self.update_positions();
+        self.sums_ok = false;
+    }
+
+    fn update_positions(&mut self) {
+        for (i, &v) in self.order.iter().enumerate() {
             self.pos[v] = i;
         }
+    }
+
+    /// Recomputes the prefix sums (only 2-opt reads them; tentative k-opt moves and their
+    /// undoing leave them alone).
+    fn update_sums(&mut self) {
+        let n = self.n();
         self.fwd.resize(n + 1, 0.0);
         self.bwd.resize(n + 1, 0.0);
         for k in 0..n {
-            let (u, v) = (order[k], order[(k + 1) % n]);
+            let (u, v) = (self.order[k], self.order[self.wrap(k + 1)]);
             self.fwd[k + 1] = self.fwd[k] + self.m.cost(u, v);
             self.bwd[k + 1] = self.bwd[k] + self.m.cost(v, u);
         }
-        self.order = order;
+        self.sums_ok = true;
     }
 
     /// Sums over the arcs from position p up to (not including) position q, cyclic:
@@ -204,8 +225,7 @@ impl State<'_> {
         &mut self,
         a: usize,
         cand: &[Vec<usize>],
-        pred_cand: &[Vec<usize>],
-        lk: &mut Chain,
+        max_depth: usize,
         touched: &mut Vec<usize>,
     ) -> bool {
         let n = self.n();
@@ -214,6 +234,9 @@ impl State<'_> {
         let b = self.succ(a);
         // 2-opt with reversal: a→b … d→e  ⇒  a→d, reversed d…b, b→e. On asymmetric costs the
         // reversed arcs change cost too; prefix sums give their total in O(1).
+        if !self.sums_ok {
+            self.update_sums();
+        }
         for &d in &cand[a] {
             let rd = self.rel(a, d);
             if rd < 2 {
@@ -263,21 +286,185 @@ impl State<'_> {
                 }
             }
         }
-        // Sequential 3-opt steps chained to a variable depth.
-        if lk.search(self, a, cand, pred_cand, touched) {
-            return true;
+        self.kopt(a, cand, max_depth, touched)
+    }
+
+    /// Variable-depth search over sequential pure k-opt basic moves (no segment is reversed),
+    /// k ≤ [`KOPT_MAX`], that starts by removing a→succ(a); the asymmetric counterpart of the
+    /// basic moves of Helsgaun's LKH on the 2n-node transform, where only moves that keep
+    /// every city next to its twin are valid.
+    ///
+    /// A basic move removes x₁→y₁, adds x₁→y₂ (y₂ a candidate of x₁), removes x₂→y₂ (x₂ the
+    /// predecessor of y₂), …, and closes with x_k→y₁; the partial gain must stay positive, and
+    /// only the final arc set has to be a tour (checked in O(k²)). The first improving move is
+    /// applied. When none improves, the feasible k = `KOPT_MAX` move of largest partial gain
+    /// is made tentatively and the search goes on from its closing arc x_k→y₁, up to
+    /// `max_depth` basic moves; a chain that ends without improvement is undone.
+    fn kopt(
+        &mut self,
+        a: usize,
+        cand: &[Vec<usize>],
+        max_depth: usize,
+        touched: &mut Vec<usize>,
+    ) -> bool {
+        let mut xs = [0usize; KOPT_MAX];
+        let mut ys = [0usize; KOPT_MAX];
+        let y1 = self.succ(a);
+        let mut x1 = a;
+        let mut g = self.m.cost(a, y1);
+        let mut saved = false;
+        // Arcs added by tentative moves (never removed again in this chain), and their cities.
+        let mut added: Vec<(usize, usize)> = Vec::new();
+        let mut moved: Vec<usize> = Vec::new();
+        for step in 0..max_depth {
+            xs[0] = x1;
+            ys[0] = y1;
+            let mut best: Option<BasicMove> = None;
+            let want_best = step + 1 < max_depth;
+            let k = self.kopt_level(
+                1,
+                g,
+                &mut xs,
+                &mut ys,
+                cand,
+                &added,
+                want_best.then_some(&mut best),
+            );
+            if k > 0 {
+                self.apply_kopt(&xs[..k], &ys[..k]);
+                touched.extend_from_slice(&moved);
+                touched.extend_from_slice(&xs[..k]);
+                touched.extend_from_slice(&ys[..k]);
+                return true;
+            }
+            let Some(mv) = best else { break };
+            if !saved {
+                saved = true;
+                self.saved.clone_from(&self.order);
+                self.saved_sums_ok = self.sums_ok;
+            }
+            let k = mv.k;
+            self.apply_kopt(&mv.xs[..k], &mv.ys[..k]);
+            for i in 0..k - 1 {
+                added.push((mv.xs[i], mv.ys[i + 1]));
+            }
+            moved.extend_from_slice(&mv.xs[..k]);
+            moved.extend_from_slice(&mv.ys[..k]);
+            x1 = mv.xs[k - 1];
+            g = mv.gain;
+        }
+        if saved {
+            // Undo the tentative moves; the prefix sums were not touched by them.
+            std::mem::swap(&mut self.order, &mut self.saved);
+            self.update_positions();
+            self.sums_ok = self.saved_sums_ok;
         }
         false
     }
 
-    /// Local search with don't-look bits until no candidate move improves.
-    fn local_search(
-        &mut self,
+    /// Depth-first search of [`State::kopt`] with `i` arcs removed so far and partial gain `g`:
+    /// returns the k of an improving feasible move left in `xs`, `ys`, or 0. When `best` is
+    /// given, it keeps the feasible non-improving move of k = [`KOPT_MAX`] with the largest
+    /// partial gain.
+    #[allow(clippy::too_many_arguments)]
+    fn kopt_level(
+        &self,
+        i: usize,
+        g: f64,
+        xs: &mut [usize; KOPT_MAX],
+        ys: &mut [usize; KOPT_MAX],
         cand: &[Vec<usize>],
-        pred_cand: &[Vec<usize>],
-        queue: &mut Vec<usize>,
-        lk: &mut Chain,
-    ) {
+        added: &[(usize, usize)],
+        mut best: Option<&mut Option<BasicMove>>,
+    ) -> usize {
+        let eps = 1e-9;
+        let x = xs[i - 1];
+        let sx = self.succ(x);
+        for &y in cand[x].iter().take(KOPT_BREADTH) {
+            if y == sx || ys[..i].contains(&y) {
+                continue;
+            }
+            let g1 = g - self.m.cost(x, y);
+            if g1 <= eps {
+                continue;
+            }
+            let xn = self.pred(y);
+            if added.contains(&(xn, y)) {
+                continue;
+            }
+            xs[i] = xn;
+            ys[i] = y;
+            let g2 = g1 + self.m.cost(xn, y);
+            if g2 - self.m.cost(xn, ys[0]) > eps && self.kopt_feasible(&xs[..=i]) {
+                return i + 1;
+            }
+            if i + 1 < KOPT_MAX {
+                let k = self.kopt_level(i + 1, g2, xs, ys, cand, added, best.as_deref_mut());
+                if k > 0 {
+                    return k;
+                }
+            } else if let Some(b) = best.as_deref_mut()
+                && b.as_ref().is_none_or(|b| g2 > b.gain)
+                && self.kopt_feasible(&xs[..=i])
+            {
+                *b = Some(BasicMove {
+                    gain: g2,
+                    k: i + 1,
+                    xs: *xs,
+                    ys: *ys,
+                });
+            }
+        }
+        0
+    }
+
+    /// Whether replacing the arcs x_i→succ(x_i) by x_i→y_{i+1} (cyclic) leaves one tour.
+    fn kopt_feasible(&self, xs: &[usize]) -> bool {
+        let k = xs.len();
+        // rank[i]: place of arc i in tour order. The segment after arc i ends at the tail of the
+        // arc ranked next; from there the added arc leads to the segment after arc i + 1.
+        let mut rank = [0usize; KOPT_MAX];
+        let mut by_rank = [0usize; KOPT_MAX];
+        let mut p = [0usize; KOPT_MAX];
+        for (pi, &x) in p.iter_mut().zip(xs) {
+            *pi = self.pos[x];
+        }
+        for i in 0..k {
+            rank[i] = p[..k].iter().filter(|&&q| q < p[i]).count();
+            by_rank[rank[i]] = i;
+        }
+        let mut arc = 0;
+        for step in 1..=k {
+            let end = by_rank[(rank[arc] + 1) % k];
+            arc = (end + 1) % k;
+            if arc == 0 {
+                return step == k;
+            }
+        }
+        false
+    }
+
+    /// Rebuilds the tour after the k-opt move of `xs`, `ys`.
+    fn apply_kopt(&mut self, xs: &[usize], ys: &[usize]) {
+        let n = self.n();
+        let k = xs.len();
+        let mut order = std::mem::take(&mut self.scratch);
+        order.clear();
+        let mut v = ys[0];
+        while order.len() < n {
+            order.push(v);
+            v = match xs.iter().position(|&x| x == v) {
+                Some(i) => ys[(i + 1) % k],
+                None => self.succ(v),
+            };
+        }
+        self.scratch = std::mem::replace(&mut self.order, order);
+        self.update_positions();
+        self.sums_ok = false;
+    }
+
+    /// Local search with don't-look bits until no candidate move improves.
+    fn local_search(&mut self, cand: &[Vec<usize>], queue: &mut Vec<usize>, max_depth: usize) {
         let n = self.n();
         let mut active = vec![false; n];
         for &v in queue.iter() {
@@ -287,7 +474,7 @@ impl State<'_> {
         while let Some(a) = queue.pop() {
             active[a] = false;
             touched.clear();
-            if self.improve_at(a, cand, pred_cand, lk, &mut touched) {
+            if self.improve_at(a, cand, max_depth, &mut touched) {
                 for &v in &touched {
                     if !active[v] {
                         active[v] = true;
@@ -311,265 +498,29 @@ const MIN_AUTO_TRIALS: usize = 30;
 /// The automatic budget never runs more than this many trials per city.
 const MAX_TRIALS_PER_CITY: usize = 50;
 
-/// Kicks of the current tour without improving it, after which the search restarts from the
-/// best tour perturbed by [`RESTART_KICKS`] double bridges.
-const RUN_STALL: usize = 100;
+/// The search restarts from a new tour (a randomised walk along the candidates) after this
+/// many tenths of n kicks in a row that do not improve the current tour: short runs from many
+/// starts escape the deep, wrong funnels of some instances better than long runs.
+const RUN_STALL_TENTHS: usize = 3;
 
-/// Double bridges applied to the best tour at a restart.
-const RESTART_KICKS: usize = 8;
+/// Most arcs exchanged by one basic move of [`State::kopt`].
+const KOPT_MAX: usize = 5;
+
+/// Candidates tried for each added arc of a basic move.
+const KOPT_BREADTH: usize = 5;
 
 /// Arcs of least reduced cost added to each candidate list when the assignment bound guides
 /// the search.
 const AP_CANDIDATES: usize = 5;
 
-/// First-level continuations of a chain that are followed deeper (the best by partial gain).
-const FIRST_BREADTH: usize = 3;
-/// Candidates tried at the deeper levels of a chain.
-const DEEP_BREADTH: usize = 5;
-
-/// Candidates tried for the arcs that close or continue a step.
-const INNER_BREADTH: usize = 5;
-
-/// A move of the chain: position `j` of the city d whose incoming arc is replaced, position
-/// `k` of the city f that the freed predecessor of d now enters (see [`Chain::search`]).
+/// A feasible basic move of [`State::kopt`]: arcs x_i→y_i (i < k) replaced by x_i→y_{i+1}
+/// and x_k→y₁, with its partial gain before the closing arc.
 #[derive(Clone, Copy)]
-struct Step {
-    j: usize,
+struct BasicMove {
+    gain: f64,
     k: usize,
-}
-
-/// Variable-depth search over sequential 3-opt steps on a Hamiltonian path, the asymmetric
-/// counterpart of Lin–Kernighan (Kanellakis–Papadimitriou 1980; Helsgaun's LKH builds its
-/// sequential moves the same way on the 2n-node transform, with 5-opt basic steps).
-///
-/// Removing a→b leaves the path b … a. A step from the path's end `t` adds t→d (d a candidate
-/// of t), removes c→d (c the predecessor of d), which splits off the cycle d … t; it then
-/// breaks the cycle at e→f and adds c→f, giving the path b … c f … t d … e. The step is kept
-/// only while the partial gain stays positive; after each step the closing arc e→b is tried.
-struct Chain {
-    path: Vec<usize>,
-    at: Vec<usize>,
-    added: Vec<(usize, usize)>,
-    steps: Vec<Step>,
-    max_depth: usize,
-}
-
-impl Chain {
-    fn new(n: usize, max_depth: usize) -> Self {
-        Self {
-            path: Vec::with_capacity(n),
-            at: vec![0; n],
-            added: Vec::new(),
-            steps: Vec::new(),
-            max_depth,
-        }
-    }
-
-    /// Applies a step: path[j..] rotated left by k − j, i.e. b … c | f … t | d … e.
-    fn apply(&mut self, s: Step) {
-        self.path[s.j..].rotate_left(s.k - s.j);
-        for (i, &v) in self.path.iter().enumerate().skip(s.j) {
-            self.at[v] = i;
-        }
-        self.steps.push(s);
-    }
-
-    fn undo(&mut self) {
-        if let Some(s) = self.steps.pop() {
-            self.path[s.j..].rotate_right(s.k - s.j);
-            for (i, &v) in self.path.iter().enumerate().skip(s.j) {
-                self.at[v] = i;
-            }
-        }
-    }
-
-    /// Looks for an improving chain that starts by removing a→succ(a); on success the new tour
-    /// is written to `st` and the cities of changed arcs are pushed onto `touched`.
-    fn search(
-        &mut self,
-        st: &mut State<'_>,
-        a: usize,
-        cand: &[Vec<usize>],
-        pred_cand: &[Vec<usize>],
-        touched: &mut Vec<usize>,
-    ) -> bool {
-        let n = st.n();
-        if n < 4 || self.max_depth == 0 {
-            return false;
-        }
-        let m = st.m;
-        let c = |i: usize, j: usize| m.cost(i, j);
-        self.path.clear();
-        let pb = st.pos[a] + 1;
-        for k in 0..n {
-            let v = st.order[st.wrap(pb + k)];
-            self.at[v] = k;
-            self.path.push(v);
-        }
-        self.steps.clear();
-        let b = self.path[0];
-        let g0 = c(a, b);
-        // First level: every candidate d of a; the best continuations are followed deeper.
-        let mut go: Vec<(Step, f64, usize)> = Vec::new();
-        self.added.clear();
-        for &d in &cand[a] {
-            let j = self.at[d];
-            if j == 0 || j >= n - 1 {
-                continue;
-            }
-            match self.best_step(m, a, d, g0, b, cand, pred_cand) {
-                Next::Close(s) => {
-                    self.apply(s);
-                    self.commit(st, touched);
-                    return true;
-                }
-                Next::Go(s, g) => go.push((s, g, d)),
-                Next::None => {}
-            }
-        }
-        if self.max_depth < 2 {
-            return false;
-        }
-        go.sort_by(|x, y| y.1.total_cmp(&x.1));
-        for &(s, g, d) in go.iter().take(FIRST_BREADTH) {
-            let (cc, f) = (self.path[s.j - 1], self.path[s.k]);
-            self.added.clear();
-            self.added.push((a, d));
-            self.added.push((cc, f));
-            self.apply(s);
-            if self.deepen(m, g, b, cand, pred_cand) {
-                self.commit(st, touched);
-                return true;
-            }
-            self.undo();
-        }
-        false
-    }
-
-    /// Greedy continuation from the current path end, up to the depth limit.
-    fn deepen(
-        &mut self,
-        m: &CostMatrix,
-        mut g: f64,
-        b: usize,
-        cand: &[Vec<usize>],
-        pred_cand: &[Vec<usize>],
-    ) -> bool {
-        let n = self.path.len();
-        let base = self.steps.len();
-        while self.steps.len() < self.max_depth {
-            let t = self.path[n - 1];
-            let mut best: Option<(Step, f64, usize)> = None;
-            for &d in cand[t].iter().take(DEEP_BREADTH) {
-                let j = self.at[d];
-                if j == 0 || j >= n - 1 {
-                    continue;
-                }
-                match self.best_step(m, t, d, g, b, cand, pred_cand) {
-                    Next::Close(s) => {
-                        self.apply(s);
-                        return true;
-                    }
-                    Next::Go(s, g2) if best.is_none_or(|x| g2 > x.1) => best = Some((s, g2, d)),
-                    _ => {}
-                }
-            }
-            let Some((s, g2, d)) = best else { break };
-            let (cc, f) = (self.path[s.j - 1], self.path[s.k]);
-            self.added.push((t, d));
-            self.added.push((cc, f));
-            self.apply(s);
-            g = g2;
-        }
-        while self.steps.len() > base {
-            self.undo();
-        }
-        false
-    }
-
-    /// For the arc t→d added at the path end with partial gain `g` before it: a closing step
-    /// with positive total gain, or the continuation with the best positive partial gain.
-    #[allow(clippy::too_many_arguments)]
-    fn best_step(
-        &self,
-        m: &CostMatrix,
-        t: usize,
-        d: usize,
-        g: f64,
-        b: usize,
-        cand: &[Vec<usize>],
-        pred_cand: &[Vec<usize>],
-    ) -> Next {
-        let c = |i: usize, j: usize| m.cost(i, j);
-        let eps = 1e-9;
-        let n = self.path.len();
-        let j = self.at[d];
-        let cc = self.path[j - 1];
-        if self.added.contains(&(cc, d)) {
-            return Next::None;
-        }
-        let g1 = g - c(t, d) + c(cc, d);
-        if g1 <= eps {
-            return Next::None;
-        }
-        // Closing arcs e→b among the candidates: e in the cycle d … t, before its end.
-        for &e in pred_cand[b].iter().take(INNER_BREADTH) {
-            let ke = self.at[e];
-            if ke < j || ke >= n - 1 {
-                continue;
-            }
-            let f = self.path[ke + 1];
-            if self.added.contains(&(e, f)) {
-                continue;
-            }
-            if g1 - c(cc, f) + c(e, f) - c(e, b) > eps {
-                return Next::Close(Step { j, k: ke + 1 });
-            }
-        }
-        // Arcs c→f among the candidates: f in the cycle after d.
-        let mut best: Option<(Step, f64)> = None;
-        for &f in cand[cc].iter().take(INNER_BREADTH) {
-            let k = self.at[f];
-            if k <= j {
-                continue;
-            }
-            let e = self.path[k - 1];
-            if self.added.contains(&(e, f)) {
-                continue;
-            }
-            let g2 = g1 - c(cc, f) + c(e, f);
-            if g2 - c(e, b) > eps {
-                return Next::Close(Step { j, k });
-            }
-            if g2 > eps && best.is_none_or(|x| g2 > x.1) {
-                best = Some((Step { j, k }, g2));
-            }
-        }
-        match best {
-            Some((s, g2)) => Next::Go(s, g2),
-            None => Next::None,
-        }
-    }
-
-    /// Writes the closed path to the tour and reports the cities of changed arcs.
-    fn commit(&self, st: &mut State<'_>, touched: &mut Vec<usize>) {
-        let n = self.path.len();
-        for (i, &v) in self.path.iter().enumerate() {
-            let next = self.path[if i + 1 == n { 0 } else { i + 1 }];
-            let old = st.succ(v);
-            if old != next {
-                touched.extend([v, next, old]);
-            }
-        }
-        st.set_order(self.path.clone());
-    }
-}
-
-/// The outcome of [`Chain::best_step`].
-enum Next {
-    None,
-    Close(Step),
-    Go(Step, f64),
+    xs: [usize; KOPT_MAX],
+    ys: [usize; KOPT_MAX],
 }
 
 /// The double bridge A B C D ⇒ A C B D of `tour` at three random cuts, with the six cities at
@@ -603,11 +554,11 @@ fn double_bridge(tour: &[usize], rng: &mut Rng) -> Option<(Vec<usize>, [usize; 6
 }
 
 /// Trials without improvement after which the automatic budget stops (once its minimum is
-/// spent): n/2, growing to n²/60 above 30 cities, where a kick is less likely to reach the part
+/// spent): n, growing to n²/40 above 40 cities, where a kick is less likely to reach the part
 /// of the tour that still needs work and a trial is a smaller part of the time than the lower
 /// bound.
 fn improvement_window(n: usize) -> usize {
-    (n / 2).max(n * n / 60)
+    n.max(n * n / 40)
 }
 
 /// A test of "this closed length is optimal": it reaches the lower bound, or, when every cost
@@ -706,12 +657,6 @@ pub fn solve(
     if let Some(ap) = &ap {
         lower_bound = lower_bound.max(ap.cost);
     }
-    let mut pred_cand = vec![Vec::new(); n];
-    for (i, list) in cand.iter().enumerate() {
-        for &j in list {
-            pred_cand[j].push(i);
-        }
-    }
     if order.len() != n {
         order = nearest_neighbour(m, &cand);
     }
@@ -721,11 +666,14 @@ pub fn solve(
         pos: vec![0; n],
         fwd: Vec::new(),
         bwd: Vec::new(),
+        sums_ok: false,
+        saved: Vec::new(),
+        saved_sums_ok: false,
+        scratch: Vec::new(),
     };
     st.set_order(order);
-    let mut lk = Chain::new(n, cfg.max_depth);
     let mut queue: Vec<usize> = (0..n).rev().collect();
-    st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
+    st.local_search(&cand, &mut queue, cfg.max_depth);
     let mut best = st.order.clone();
     let mut best_len = st.length();
     let mut rng = Rng(cfg.seed);
@@ -766,7 +714,7 @@ pub fn solve(
             }
             st.set_order(order);
             let mut queue: Vec<usize> = (0..n).collect();
-            st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
+            st.local_search(&cand, &mut queue, cfg.max_depth);
             let len = st.length();
             if len < best_len - tol(best_len) {
                 stall = 0;
@@ -777,18 +725,13 @@ pub fn solve(
             }
             continue;
         }
-        if run_stall > RUN_STALL {
+        if run_stall > RUN_STALL_TENTHS * n / 10 {
             // The current tour is stuck: restart from the best tour after several kicks.
             run_stall = 0;
-            let mut order = best.clone();
-            for _ in 0..RESTART_KICKS {
-                if let Some((kicked, _)) = double_bridge(&order, &mut rng) {
-                    order = kicked;
-                }
-            }
+            let order = candidate_walk(&cand, &mut rng);
             st.set_order(order);
             let mut queue: Vec<usize> = (0..n).collect();
-            st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
+            st.local_search(&cand, &mut queue, cfg.max_depth);
             cur.clone_from(&st.order);
             cur_len = st.length();
         } else {
@@ -797,7 +740,7 @@ pub fn solve(
             };
             st.set_order(kicked);
             let mut queue = ends.to_vec();
-            st.local_search(&cand, &pred_cand, &mut queue, &mut lk);
+            st.local_search(&cand, &mut queue, cfg.max_depth);
             let len = st.length();
             if len < cur_len - tol(cur_len) {
                 run_stall = 0;
@@ -826,6 +769,32 @@ pub fn solve(
         lower_bound,
         trials,
     })
+}
+
+/// A random tour along the candidates: from a random city, the first unvisited candidate
+/// (the second one with probability 1/3), or a random unvisited city when none is left.
+fn candidate_walk(cand: &[Vec<usize>], rng: &mut Rng) -> Vec<usize> {
+    let n = cand.len();
+    let mut seen = vec![false; n];
+    let mut rest: Vec<usize> = (0..n).collect();
+    let mut order = Vec::with_capacity(n);
+    let mut cur = rng.below(n);
+    loop {
+        seen[cur] = true;
+        order.push(cur);
+        if order.len() == n {
+            return order;
+        }
+        let mut free = cand[cur].iter().copied().filter(|&j| !seen[j]);
+        cur = match (free.next(), free.next()) {
+            (Some(_), Some(second)) if rng.below(3) == 0 => second,
+            (Some(first), _) => first,
+            _ => {
+                rest.retain(|&j| !seen[j]);
+                rest[rng.below(rest.len())]
+            }
+        };
+    }
 }
 
 /// Nearest-neighbour tour from city 0 through the candidates (any city when they are used up).
