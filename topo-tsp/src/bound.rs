@@ -119,31 +119,29 @@ pub(crate) fn one_tree(d: &Dense, pi: &[f64]) -> OneTree {
     let mut degree = vec![0i64; big_n];
     let mut cost = 0.0;
     let (pc, pt) = pi.split_at(n);
-    // For every super-node v outside the tree: its cheapest link cost, the tree super-node at
-    // the other end, and whether the link is twin v → city (else twin → city v).
-    let mut best_c = vec![f64::INFINITY; n];
+    // Kept in the order of `rest` (so that the inner loop reads them contiguously): each
+    // super-node's cheapest link cost and its penalties; by node: the tree super-node at the
+    // other end of that link, and whether it is twin v → city (else twin → city v).
     let mut best_u = vec![0usize; n];
     let mut best_rev = vec![false; n];
-    // Super-node 0 holds only twin n (city 0 is the special node): its links are twin 0 → b.
-    for b in 1..n {
-        best_c[b] = d.rows[b] + pt[0] + pc[b];
-    }
     let mut rest: Vec<usize> = (1..n).collect();
+    // Super-node 0 holds only twin n (city 0 is the special node): its links are twin 0 → b.
+    let mut rc: Vec<f64> = rest.iter().map(|&b| d.rows[b] + pt[0] + pc[b]).collect();
+    let mut rpc: Vec<f64> = rest.iter().map(|&b| pc[b]).collect();
+    let mut rpt: Vec<f64> = rest.iter().map(|&b| pt[b]).collect();
     // The closest super-node not yet in the tree (ties by index: deterministic).
-    let closest = |rest: &[usize], best_c: &[f64]| {
-        let mut k = 0;
-        for (idx, &v) in rest.iter().enumerate() {
-            let (bv, bk) = (best_c[v], best_c[rest[k]]);
-            if bv < bk || (bv == bk && v < rest[k]) {
-                k = idx;
-            }
+    let mut next = 0;
+    for idx in 1..rest.len() {
+        let (bv, bk) = (rc[idx], rc[next]);
+        if bv < bk || (bv == bk && rest[idx] < rest[next]) {
+            next = idx;
         }
-        k
-    };
-    let mut next = closest(&rest, &best_c);
+    }
     while next < rest.len() {
         let u = rest.swap_remove(next);
-        cost += best_c[u];
+        cost += rc.swap_remove(next);
+        rpc.swap_remove(next);
+        rpt.swap_remove(next);
         let w = best_u[u];
         // The link joins twin u → city w, or twin w → city u; u's partner hangs below.
         let (inner, outer) = if best_rev[u] { (n + u, w) } else { (u, n + w) };
@@ -157,20 +155,24 @@ pub(crate) fn one_tree(d: &Dense, pi: &[f64]) -> OneTree {
         // Update the links through u, and find the next closest super-node on the way.
         let mut k = usize::MAX;
         let mut kc = f64::INFINITY;
-        for (idx, &v) in rest.iter().enumerate() {
+        let mut kv = usize::MAX;
+        let items = rest.iter().zip(rc.iter_mut()).zip(rpc.iter().zip(&rpt));
+        for (idx, ((&v, c), (&pcv, &ptv))) in items.enumerate() {
             // Twin of u → city v, or twin of v → city u.
-            let ab = row[v] + ptu + pc[v];
-            let ba = col[v] + pt[v] + pcu;
+            let ab = row[v] + ptu + pcv;
+            let ba = col[v] + ptv + pcu;
             let x = ab.min(ba);
-            if x < best_c[v] {
-                best_c[v] = x;
+            let mut bv = *c;
+            if x < bv {
+                bv = x;
+                *c = x;
                 best_u[v] = u;
                 best_rev[v] = ba < ab;
             }
-            let bv = best_c[v];
-            if k == usize::MAX || bv < kc || (bv == kc && v < rest[k]) {
+            if k == usize::MAX || bv < kc || (bv == kc && v < kv) {
                 k = idx;
                 kc = bv;
+                kv = v;
             }
         }
         next = if rest.is_empty() { usize::MAX } else { k };
@@ -390,7 +392,7 @@ pub fn alpha_candidates(m: &CostMatrix, pi: &[f64], k: usize) -> Result<Vec<Vec<
                 beta[w] = beta[p].max(edge_w(w));
             }
         }
-        let mut cands: Vec<(f64, f64, usize)> = (0..big_n)
+        let cands: Vec<(f64, f64, usize)> = (0..big_n)
             .filter(|&v| v != u)
             .filter_map(|v| {
                 let c = cost(u, v)?;
@@ -398,24 +400,30 @@ pub fn alpha_candidates(m: &CostMatrix, pi: &[f64], k: usize) -> Result<Vec<Vec<
                 Some(((c - b).max(0.0), c, v))
             })
             .collect();
-        cands.sort_by(|a, b| {
-            a.0.total_cmp(&b.0)
-                .then(a.1.total_cmp(&b.1))
-                .then(a.2.cmp(&b.2))
-        });
-        out[u] = cands.into_iter().take(k).map(|c| c.2).collect();
+        out[u] = smallest(cands, k);
     }
     // The special node: α = c − (larger special edge).
-    let mut cands: Vec<(f64, f64, usize)> = (n + 1..big_n)
+    let cands: Vec<(f64, f64, usize)> = (n + 1..big_n)
         .filter_map(|v| cost(0, v).map(|c| ((c - special_beta).max(0.0), c, v)))
         .collect();
-    cands.sort_by(|a, b| {
+    out[0] = smallest(cands, k);
+    Ok(out)
+}
+
+/// The nodes of the `k` smallest (α, cost, node) triples, in increasing order (the order is
+/// total, so selecting before sorting gives the same lists as a full sort).
+fn smallest(mut cands: Vec<(f64, f64, usize)>, k: usize) -> Vec<usize> {
+    let cmp = |a: &(f64, f64, usize), b: &(f64, f64, usize)| {
         a.0.total_cmp(&b.0)
             .then(a.1.total_cmp(&b.1))
             .then(a.2.cmp(&b.2))
-    });
-    out[0] = cands.into_iter().take(k).map(|c| c.2).collect();
-    Ok(out)
+    };
+    if k < cands.len() {
+        cands.select_nth_unstable_by(k, cmp);
+        cands.truncate(k);
+    }
+    cands.sort_by(cmp);
+    cands.into_iter().map(|c| c.2).collect()
 }
 
 #[cfg(test)]

@@ -395,24 +395,31 @@ impl State<'_> {
             xs[i] = xn;
             ys[i] = y;
             let g2 = g1 + self.m.cost(xn, y);
-            if g2 - self.m.cost(xn, ys[0]) > eps && self.kopt_feasible(&xs[..=i]) {
-                return i + 1;
+            let closes = g2 - self.m.cost(xn, ys[0]) > eps;
+            let leaf = i + 1 == KOPT_MAX;
+            let track = leaf
+                && best
+                    .as_ref()
+                    .is_some_and(|b| b.as_ref().is_none_or(|b| g2 > b.gain));
+            // One feasibility test serves both the closing move and the best tentative move.
+            if (closes || track) && self.kopt_feasible(&xs[..=i]) {
+                if closes {
+                    return i + 1;
+                }
+                if let Some(b) = best.as_deref_mut() {
+                    *b = Some(BasicMove {
+                        gain: g2,
+                        k: i + 1,
+                        xs: *xs,
+                        ys: *ys,
+                    });
+                }
             }
-            if i + 1 < KOPT_MAX {
+            if !leaf {
                 let k = self.kopt_level(i + 1, g2, xs, ys, cand, added, best.as_deref_mut());
                 if k > 0 {
                     return k;
                 }
-            } else if let Some(b) = best.as_deref_mut()
-                && b.as_ref().is_none_or(|b| g2 > b.gain)
-                && self.kopt_feasible(&xs[..=i])
-            {
-                *b = Some(BasicMove {
-                    gain: g2,
-                    k: i + 1,
-                    xs: *xs,
-                    ys: *ys,
-                });
             }
         }
         0
@@ -421,6 +428,10 @@ impl State<'_> {
     /// Whether replacing the arcs x_i→succ(x_i) by x_i→y_{i+1} (cyclic) leaves one tour.
     fn kopt_feasible(&self, xs: &[usize]) -> bool {
         let k = xs.len();
+        if k < 3 {
+            // Exchanging two arcs without reversing a segment always splits the tour.
+            return false;
+        }
         // rank[i]: place of arc i in tour order. The segment after arc i ends at the tail of the
         // arc ranked next; from there the added arc leads to the segment after arc i + 1.
         let mut rank = [0usize; KOPT_MAX];
