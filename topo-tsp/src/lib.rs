@@ -22,7 +22,7 @@
 //!   and, when it is tight, the assignment relaxation (2-opt, Or-opt and a variable-depth search
 //!   over sequential pure 5-opt basic moves with don't-look bits, iterated with double-bridge
 //!   kicks and restarts), budgets by trials and by a caller-supplied stop predicate. With
-//!   default settings it reaches 18 of the 19 TSPLIB ATSP optima (see the README).
+//!   default settings it reaches 17 of the 19 TSPLIB ATSP optima (see the README).
 //!
 //! # Example
 //! ```

@@ -12,10 +12,11 @@
 //! transform written directly on the asymmetric tour: sequential pure k-opt basic moves
 //! (k ≤ 5, no segment reversed), chained Lin–Kernighan style (see `State::kopt`).
 //! A trial kicks the current tour with a double bridge and improves it again; a current tour
-//! that 0.3 n kicks in a row have not improved is replaced by a new local optimum from a
-//! randomised walk along the candidates. The automatic budget runs at least n trials and goes
-//! on while the best tour still improves; it stops early when the tour is proven optimal (its
-//! length reaches the lower bound, rounded up when every cost is an integer).
+//! that 0.3 n kicks in a row have not improved is replaced by a new local optimum (improving
+//! basic moves only) from a randomised walk along the candidates. The automatic budget runs at
+//! least n trials and goes on while the best tour still improves; it stops early when the tour
+//! is proven optimal (its length reaches the lower bound, rounded up when every cost is an
+//! integer).
 //! Everything is seeded: the same instance, settings and seed give the same tour.
 
 use crate::assignment::{assignment, patch};
@@ -725,7 +726,10 @@ pub fn solve(
             }
             st.set_order(order);
             let mut queue: Vec<usize> = (0..n).collect();
-            st.local_search(&cand, &mut queue, cfg.max_depth);
+            // Every other restart without k-opt moves: among so few tours the two local
+            // searches have different basins, and the optimum is sometimes in only one.
+            let depth = if trials % 2 == 0 { 0 } else { cfg.max_depth };
+            st.local_search(&cand, &mut queue, depth);
             let len = st.length();
             if len < best_len - tol(best_len) {
                 stall = 0;
@@ -737,12 +741,13 @@ pub fn solve(
             continue;
         }
         if run_stall > RUN_STALL_TENTHS * n / 10 {
-            // The current tour is stuck: restart from the best tour after several kicks.
+            // The current tour is stuck: restart from a new local optimum. Improving basic moves
+            // suffice there (the restart is for diversity), and keep restarts cheap.
             run_stall = 0;
             let order = candidate_walk(&cand, &mut rng);
             st.set_order(order);
             let mut queue: Vec<usize> = (0..n).collect();
-            st.local_search(&cand, &mut queue, cfg.max_depth);
+            st.local_search(&cand, &mut queue, cfg.max_depth.min(1));
             cur.clone_from(&st.order);
             cur_len = st.length();
         } else {
