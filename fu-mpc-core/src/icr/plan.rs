@@ -669,6 +669,38 @@ mod tests {
         }
     }
 
+    /// The chunked parallel passes give bit-identical results on 1 and 3 threads, for both
+    /// prior kinds.
+    #[test]
+    fn results_do_not_depend_on_the_thread_count() {
+        let run = |threads: usize, dense: bool| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                // More cells than one chunk, so several chunks are combined.
+                let map = grid_map(9, if dense { 34 } else { 60 }, dense);
+                let mut icr =
+                    Icr::new(IcrConfig::default(), Triangle::new(3.0, 0.5).unwrap()).unwrap();
+                let start =
+                    Isometry3::new(Vector3::new(-1.0, 0.5, 0.0), Vector3::new(0.0, 0.0, 0.3));
+                let u = vec![Vector6::new(1.2, 0.1, 0.0, 0.0, 0.0, 0.4); 5];
+                let mut g = vec![Vector6::zeros(); 5];
+                let r = icr.reward_and_gradient(&map, &start, &u, &mut g).unwrap();
+                (
+                    r.to_bits(),
+                    g.iter()
+                        .flat_map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+                        .collect::<Vec<_>>(),
+                )
+            })
+        };
+        for dense in [false, true] {
+            assert_eq!(run(1, dense), run(3, dense));
+        }
+    }
+
     #[test]
     fn a_small_step_increases_the_reward() {
         let map = grid_map(5, 15, false);
