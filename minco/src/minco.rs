@@ -1,7 +1,7 @@
 //! The MINCO problem: set up once, solve for new waypoints and durations, propagate gradients.
 
 use crate::error::{MincoError, Result};
-use crate::hermite::{Block, MAX_FREE, TABLES, Tables, spd_inverse};
+use crate::hermite::{Block, MAX_FREE, TABLES, Table, Tables, spd_inverse};
 use crate::poly::{FALLING, MAX_COEFFS, eval, powers};
 use crate::trajectory::Trajectory;
 
@@ -472,13 +472,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
                 }
             }
             for k in S..n {
-                let mut v = [0.0; D];
-                for (j, zj) in z.iter().enumerate().take(n) {
-                    let b = Self::TAB.b[k][j];
-                    for d in 0..D {
-                        v[d] += b * zj[d];
-                    }
-                }
+                let v = Self::table_row(&Self::TAB.b, k, &z);
                 for d in 0..D {
                     c[k][d] -= v[d] * ip[k];
                 }
@@ -511,6 +505,18 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         z
     }
 
+    /// Row `k` of a 2S × 2S table applied to scaled states: Σ_j table\[k\]\[j\] z̃_j.
+    #[inline(always)]
+    fn table_row(table: &Table, k: usize, z: &[[f64; D]; MAX_COEFFS]) -> [f64; D] {
+        let mut v = [0.0; D];
+        for (b, zj) in table[k].iter().zip(z).take(Self::N) {
+            for d in 0..D {
+                v[d] += b * zj[d];
+            }
+        }
+        v
+    }
+
     /// c_i = B(T_i) z_i: c_k = a_k / k! for k < S, c_k = T^{−k} Σ_j B₁\[k\]\[j\] z̃_j above.
     fn fill_coefficients(&mut self) {
         let n = Self::N;
@@ -525,13 +531,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
                 }
             }
             for k in S..n {
-                let mut v = [0.0; D];
-                for (j, zj) in z.iter().enumerate().take(n) {
-                    let b = Self::TAB.b[k][j];
-                    for d in 0..D {
-                        v[d] += b * zj[d];
-                    }
-                }
+                let v = Self::table_row(&Self::TAB.b, k, &z);
                 for d in 0..D {
                     c[k][d] = v[d] * ip[k];
                 }
@@ -718,13 +718,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
             let g = &grad_c[n * i..n * (i + 1)];
             let mut total = grad_t[i];
             for k in S..n {
-                let mut v = [0.0; D];
-                for (j, zj) in z.iter().enumerate().take(n) {
-                    let b = tab.b_dt[k][j];
-                    for d in 0..D {
-                        v[d] += b * zj[d];
-                    }
-                }
+                let v = Self::table_row(&tab.b_dt, k, &z);
                 for d in 0..D {
                     total += g[k][d] * v[d] * ip[k + 1];
                 }
