@@ -321,13 +321,7 @@ impl<F: FovSdf> Icr<F> {
             .zip(map.cells().par_chunks(CHUNK))
             .for_each(|((m, slopes), cells)| {
                 for ((mj, p), row) in m.iter_mut().zip(cells).zip(slopes.chunks_mut(k_len)) {
-                    for ((rot, tr), out) in frames.iter().zip(row) {
-                        let q = rot * p.coords + tr;
-                        let (d, gd) = fov.sdf(&q);
-                        let (w, dw) = probit.inverse_noise(d, sigma);
-                        *mj += w;
-                        *out = CellSlope { q, g: gd * dw };
-                    }
+                    *mj = cell_terms(frames, fov, probit, sigma, p, row);
                 }
             });
         self.inv_diag.clear();
@@ -341,11 +335,7 @@ impl<F: FovSdf> Icr<F> {
             .map(|(slopes, weights)| {
                 let mut acc = vec![Vector6::zeros(); k_len];
                 for (row, w) in slopes.chunks(k_len).zip(weights) {
-                    for (a, c) in acc.iter_mut().zip(row) {
-                        let g = c.g * *w;
-                        let qg = c.q.cross(&g);
-                        *a -= Vector6::new(g.x, g.y, g.z, qg.x, qg.y, qg.z);
-                    }
+                    add_gamma(&mut acc, row, *w);
                 }
                 acc
             })
@@ -424,22 +414,9 @@ fn fused_diagonal<F: FovSdf>(
             let mut row = vec![CellSlope::default(); k_len];
             let mut log_det = 0.0;
             for (p, y) in cells.iter().zip(y0) {
-                let mut m = 0.0;
-                for ((rot, tr), out) in frames.iter().zip(row.iter_mut()) {
-                    let q = rot * p.coords + tr;
-                    let (d, gd) = fov.sdf(&q);
-                    let (w, dw) = probit.inverse_noise(d, sigma);
-                    m += w;
-                    *out = CellSlope { q, g: gd * dw };
-                }
-                let yk = y + m;
+                let yk = y + cell_terms(frames, fov, probit, sigma, p, &mut row);
                 log_det += yk.ln();
-                let weight = 1.0 / yk;
-                for (a, c) in acc.iter_mut().zip(&row) {
-                    let g = c.g * weight;
-                    let qg = c.q.cross(&g);
-                    *a -= Vector6::new(g.x, g.y, g.z, qg.x, qg.y, qg.z);
-                }
+                add_gamma(&mut acc, &row, 1.0 / yk);
             }
             (log_det, acc)
         })
@@ -453,6 +430,38 @@ fn fused_diagonal<F: FovSdf>(
         }
     }
     (reward, gamma)
+}
+
+/// One cell over all poses: writes q and (∂V⁻¹/∂d)·∇d per pose to `row` and returns the
+/// information Σ_s M_jj(T_s) the cell receives, eqs. (14), (21).
+#[inline]
+fn cell_terms<F: FovSdf>(
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+    fov: &F,
+    probit: &Probit,
+    sigma: f64,
+    p: &nalgebra::Point3<f64>,
+    row: &mut [CellSlope],
+) -> f64 {
+    let mut m = 0.0;
+    for ((rot, tr), out) in frames.iter().zip(row) {
+        let q = rot * p.coords + tr;
+        let (d, gd) = fov.sdf(&q);
+        let (w, dw) = probit.inverse_noise(d, sigma);
+        m += w;
+        *out = CellSlope { q, g: gd * dw };
+    }
+    m
+}
+
+/// Adds one cell's share of each Γ_s, eqs. (23)–(24), with weight (Y_K⁻¹)_jj.
+#[inline]
+fn add_gamma(acc: &mut [Vector6<f64>], row: &[CellSlope], weight: f64) {
+    for (a, c) in acc.iter_mut().zip(row) {
+        let g = c.g * weight;
+        let qg = c.q.cross(&g);
+        *a -= Vector6::new(g.x, g.y, g.z, qg.x, qg.y, qg.z);
+    }
 }
 
 /// World-to-body rotation matrices and translations of the poses.
@@ -486,14 +495,19 @@ mod tests {
     use nalgebra::{Matrix4, Point3, Vector4};
     use proptest::prelude::*;
 
-    fn grid_map(seed: u64, n_side: usize, dense: bool) -> InformationMap {
+    /// A seeded uniform sequence on [0, 1).
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed;
-        let mut next = move || {
+        move || {
             s = s
                 .wrapping_mul(6_364_136_223_846_793_005)
                 .wrapping_add(1_442_695_040_888_963_407);
             (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        }
+    }
+
+    fn grid_map(seed: u64, n_side: usize, dense: bool) -> InformationMap {
+        let mut next = uniform(seed);
         let cells: Vec<Point3<f64>> = (0..n_side * n_side)
             .map(|i| {
                 let (x, y) = ((i % n_side) as f64, (i / n_side) as f64);
@@ -509,13 +523,7 @@ mod tests {
     }
 
     fn cloud_map(seed: u64, n: usize) -> InformationMap {
-        let mut s = seed;
-        let mut next = move || {
-            s = s
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = uniform(seed);
         let cells: Vec<Point3<f64>> = (0..n)
             .map(|_| Point3::new(6.0 * next() - 1.0, 6.0 * next() - 3.0, 4.0 * next() - 2.0))
             .collect();
