@@ -43,15 +43,7 @@ impl FisherConfig {
         if self.candidates == 0 {
             return invalid("candidates", 0.0, "need at least one candidate angle");
         }
-        if self.neighbours < 3 {
-            // Counts are small.
-            #[allow(clippy::cast_precision_loss)]
-            return invalid(
-                "neighbours",
-                self.neighbours as f64,
-                "need at least 3 for a plane",
-            );
-        }
+        check_neighbours(self.neighbours)?;
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
             return invalid("epsilon", self.epsilon, "must be positive and finite");
         }
@@ -191,6 +183,16 @@ fn trace_inverse(a: &Matrix3<f64>) -> f64 {
     let c22 = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)];
     let det = a.determinant();
     (c00 + c11 + c22) / det
+}
+
+/// The neighbour count K of a PCA normal: at least 3 points span a plane.
+pub(crate) fn check_neighbours(k: usize) -> Result<()> {
+    if k < 3 {
+        // Counts are small.
+        #[allow(clippy::cast_precision_loss)]
+        return invalid("neighbours", k as f64, "need at least 3 for a plane");
+    }
+    Ok(())
 }
 
 /// Unit normals by PCA of each point's K nearest neighbours (K capped at the cloud size); a

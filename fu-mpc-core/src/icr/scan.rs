@@ -11,7 +11,7 @@ use super::fov::Probit;
 use crate::Result;
 use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
 use crate::error::{CoreError, invalid};
-use crate::fisher::normals;
+use crate::fisher::{check_neighbours, normals};
 
 /// The sensor's field of view and range, prepared for [`IcrScan::sdf`].
 #[derive(Debug, Clone, Copy)]
@@ -113,15 +113,7 @@ impl IcrScanConfig {
         if !(self.step.is_finite() && self.step > 0.0) {
             return invalid("step", self.step, "must be positive and finite");
         }
-        if self.neighbours < 3 {
-            // Counts are small.
-            #[allow(clippy::cast_precision_loss)]
-            return invalid(
-                "neighbours",
-                self.neighbours as f64,
-                "need at least 3 for a plane",
-            );
-        }
+        check_neighbours(self.neighbours)?;
         if self.max_points == 0 {
             return invalid("max_points", 0.0, "need at least one point");
         }
