@@ -10,11 +10,13 @@
 //! (Or-opt, segments of 1–3 nodes), 2-opt with reversal, whose asymmetric cost change comes
 //! from prefix sums of the forward and backward arc costs, and the moves of LKH on the 2n-node
 //! transform written directly on the asymmetric tour: sequential pure k-opt basic moves
-//! (k ≤ 5, no segment reversed), chained Lin–Kernighan style (see `State::kopt`).
+//! (k ≤ 5, no segment reversed), chained Lin–Kernighan style (see `State::kopt`), both from
+//! a city's outgoing arc through successor candidates and from its incoming arc through
+//! predecessor candidates, as LKH starts from either tour neighbour of t₁.
 //! A trial kicks the current tour with a double bridge and improves it again; a current tour
 //! that 0.3 n kicks in a row have not improved is replaced by a new local optimum (improving
 //! basic moves only) from a randomised walk along the candidates. The automatic budget runs at
-//! least n trials and goes on while the best tour still improves; it stops early when the tour
+//! least 2n trials and goes on while the best tour still improves; it stops early when the tour
 //! is proven optimal (its length reaches the lower bound, rounded up when every cost is an
 //! integer).
 //! Everything is seeded: the same instance, settings and seed give the same tour.
@@ -40,13 +42,16 @@ pub struct SolverConfig {
     /// an open tour and duplicated nodes create many ties, which 5 candidates do not cover.
     pub candidates: usize,
     /// Kick-and-improve trials after the first local optimum. Default 0: automatic — at least
-    /// `trials_per_city` × n (LKH runs n trials) and 30, then more while the best tour still
-    /// improves: the search stops after max(n/2, n²/60) trials in a row without
-    /// improvement, or at 50 trials per city. Instances of up to 12 cities get 300 cheap
-    /// random restarts. Any other value is an exact trial budget.
+    /// `trials_per_city` × n (LKH runs n trials) and 30; then, with
+    /// `continue_while_improving`, more until `trials_per_city` × max(n, n²/40) trials in a
+    /// row have not improved the best tour, at most 50 per city. Instances of up to 12 cities
+    /// get 300 cheap random restarts. Any other value is an exact trial budget.
     pub max_trials: usize,
-    /// Minimum trials per city when `max_trials` is 0. Default 1.
+    /// Scale of the automatic budget (used when `max_trials` is 0). Default 2: with 1, the
+    /// search misses the optimum of ftv35 or ftv38 (TSPLIB) on some seeds.
     pub trials_per_city: usize,
+    /// Whether the automatic budget goes on while the best tour still improves. Default true.
+    pub continue_while_improving: bool,
     /// Stop after this many trials in a row without improvement, plus 5 per city, whatever the
     /// trial budget. Default `usize::MAX` (no such stop).
     pub stall_trials: usize,
@@ -64,7 +69,8 @@ impl Default for SolverConfig {
         Self {
             candidates: 10,
             max_trials: 0,
-            trials_per_city: 1,
+            trials_per_city: 2,
+            continue_while_improving: true,
             stall_trials: usize::MAX,
             seed: 1,
             max_depth: 2,
@@ -74,6 +80,25 @@ impl Default for SolverConfig {
 }
 
 impl SolverConfig {
+    /// The budget of LKH's defaults, for planners that re-solve many times a second: n trials
+    /// (and at least 30), no continuation. About a third of the default's time; it finds
+    /// the optimum less often on hard instances.
+    ///
+    /// # Example
+    /// ```
+    /// use topo_tsp::{CostMatrix, SolverConfig, solve_open};
+    /// let m = CostMatrix::from_fn(40, |i, j| ((i * 7 + j * 13) % 23) as f64 + 1.0).unwrap();
+    /// let s = solve_open(&m, &SolverConfig::fast(), || false).unwrap();
+    /// assert_eq!(s.trials, 40);
+    /// ```
+    pub fn fast() -> Self {
+        Self {
+            trials_per_city: 1,
+            continue_while_improving: false,
+            ..Self::default()
+        }
+    }
+
     /// Sets the seed.
     pub fn with_seed(mut self, seed: u64) -> Self {
         self.seed = seed;
@@ -86,7 +111,7 @@ impl SolverConfig {
         self
     }
 
-    /// Sets the minimum automatic trial budget per city (used when `max_trials` is 0).
+    /// Sets the scale of the automatic trial budget (used when `max_trials` is 0).
     pub fn with_trials_per_city(mut self, trials: usize) -> Self {
         self.trials_per_city = trials;
         self
@@ -128,6 +153,12 @@ impl Rng {
     }
 }
 
+/// Candidate arcs of every city: its likely successors and its likely predecessors.
+struct Candidates {
+    succ: Vec<Vec<usize>>,
+    pred: Vec<Vec<usize>>,
+}
+
 /// The local-search state: order and position of every city.
 struct State<'a> {
     m: &'a CostMatrix,
@@ -163,6 +194,38 @@ impl State<'_> {
 
     fn pred(&self, v: usize) -> usize {
         self.order[self.wrap(self.pos[v] + self.n() - 1)]
+    }
+
+    /// The successor of `v` on the tour read forwards (`R` false) or backwards (`R` true).
+    #[inline(always)]
+    fn next<const R: bool>(&self, v: usize) -> usize {
+        if R { self.pred(v) } else { self.succ(v) }
+    }
+
+    /// The predecessor of `v` on the tour read forwards or backwards.
+    #[inline(always)]
+    fn prev<const R: bool>(&self, v: usize) -> usize {
+        if R { self.succ(v) } else { self.pred(v) }
+    }
+
+    /// The cost of the arc i→j of the tour read forwards, or of j→i read backwards.
+    #[inline(always)]
+    fn cost<const R: bool>(&self, i: usize, j: usize) -> f64 {
+        if R {
+            self.m.cost(j, i)
+        } else {
+            self.m.cost(i, j)
+        }
+    }
+
+    /// The position of `v` on the tour read forwards or backwards.
+    #[inline(always)]
+    fn place<const R: bool>(&self, v: usize) -> usize {
+        if R {
+            self.n() - 1 - self.pos[v]
+        } else {
+            self.pos[v]
+        }
     }
 
     /// Position of `v` counted from `a` along the tour.
@@ -225,7 +288,7 @@ impl State<'_> {
     fn improve_at(
         &mut self,
         a: usize,
-        cand: &[Vec<usize>],
+        cand: &Candidates,
         max_depth: usize,
         touched: &mut Vec<usize>,
     ) -> bool {
@@ -238,7 +301,7 @@ impl State<'_> {
         if !self.sums_ok {
             self.update_sums();
         }
-        for &d in &cand[a] {
+        for &d in &cand.succ[a] {
             let rd = self.rel(a, d);
             if rd < 2 {
                 continue;
@@ -267,7 +330,7 @@ impl State<'_> {
             if removed <= eps {
                 continue;
             }
-            for &bb in &cand[last] {
+            for &bb in &cand.succ[last] {
                 let rb = self.rel(first, bb);
                 if rb < len + 1 {
                     continue; // inside the segment, or its old successor
@@ -287,7 +350,11 @@ impl State<'_> {
                 }
             }
         }
-        self.kopt(a, cand, max_depth, touched)
+        // Chains that start by removing a→succ(a) and add successor candidates, then chains that
+        // start by removing pred(a)→a and add predecessor candidates: LKH's two directions
+        // from t₁ on the 2n-node transform.
+        self.kopt::<false>(a, &cand.succ, max_depth, touched)
+            || self.kopt::<true>(a, &cand.pred, max_depth, touched)
     }
 
     /// Variable-depth search over sequential pure k-opt basic moves (no segment is reversed),
@@ -301,7 +368,7 @@ impl State<'_> {
     /// applied. When none improves, the feasible k = `KOPT_MAX` move of largest partial gain
     /// is made tentatively and the search goes on from its closing arc x_k→y₁, up to
     /// `max_depth` basic moves; a chain that ends without improvement is undone.
-    fn kopt(
+    fn kopt<const R: bool>(
         &mut self,
         a: usize,
         cand: &[Vec<usize>],
@@ -310,9 +377,9 @@ impl State<'_> {
     ) -> bool {
         let mut xs = [0usize; KOPT_MAX];
         let mut ys = [0usize; KOPT_MAX];
-        let y1 = self.succ(a);
+        let y1 = self.next::<R>(a);
         let mut x1 = a;
-        let mut g = self.m.cost(a, y1);
+        let mut g = self.cost::<R>(a, y1);
         let mut saved = false;
         // Arcs added by tentative moves (never removed again in this chain), and their cities.
         let mut added: Vec<(usize, usize)> = Vec::new();
@@ -322,7 +389,7 @@ impl State<'_> {
             ys[0] = y1;
             let mut best: Option<BasicMove> = None;
             let want_best = step + 1 < max_depth;
-            let k = self.kopt_level(
+            let k = self.kopt_level::<R>(
                 1,
                 g,
                 &mut xs,
@@ -332,7 +399,7 @@ impl State<'_> {
                 want_best.then_some(&mut best),
             );
             if k > 0 {
-                self.apply_kopt(&xs[..k], &ys[..k]);
+                self.apply_kopt::<R>(&xs[..k], &ys[..k]);
                 touched.extend_from_slice(&moved);
                 touched.extend_from_slice(&xs[..k]);
                 touched.extend_from_slice(&ys[..k]);
@@ -345,7 +412,7 @@ impl State<'_> {
                 self.saved_sums_ok = self.sums_ok;
             }
             let k = mv.k;
-            self.apply_kopt(&mv.xs[..k], &mv.ys[..k]);
+            self.apply_kopt::<R>(&mv.xs[..k], &mv.ys[..k]);
             for i in 0..k - 1 {
                 added.push((mv.xs[i], mv.ys[i + 1]));
             }
@@ -368,7 +435,7 @@ impl State<'_> {
     /// given, it keeps the feasible non-improving move of k = [`KOPT_MAX`] with the largest
     /// partial gain.
     #[allow(clippy::too_many_arguments)]
-    fn kopt_level(
+    fn kopt_level<const R: bool>(
         &self,
         i: usize,
         g: f64,
@@ -380,30 +447,30 @@ impl State<'_> {
     ) -> usize {
         let eps = 1e-9;
         let x = xs[i - 1];
-        let sx = self.succ(x);
+        let sx = self.next::<R>(x);
         for &y in cand[x].iter().take(KOPT_BREADTH) {
             if y == sx || ys[..i].contains(&y) {
                 continue;
             }
-            let g1 = g - self.m.cost(x, y);
+            let g1 = g - self.cost::<R>(x, y);
             if g1 <= eps {
                 continue;
             }
-            let xn = self.pred(y);
+            let xn = self.prev::<R>(y);
             if added.contains(&(xn, y)) {
                 continue;
             }
             xs[i] = xn;
             ys[i] = y;
-            let g2 = g1 + self.m.cost(xn, y);
-            let closes = g2 - self.m.cost(xn, ys[0]) > eps;
+            let g2 = g1 + self.cost::<R>(xn, y);
+            let closes = g2 - self.cost::<R>(xn, ys[0]) > eps;
             let leaf = i + 1 == KOPT_MAX;
             let track = leaf
                 && best
                     .as_ref()
                     .is_some_and(|b| b.as_ref().is_none_or(|b| g2 > b.gain));
             // One feasibility test serves both the closing move and the best tentative move.
-            if (closes || track) && self.kopt_feasible(&xs[..=i]) {
+            if (closes || track) && self.kopt_feasible::<R>(&xs[..=i]) {
                 if closes {
                     return i + 1;
                 }
@@ -417,7 +484,7 @@ impl State<'_> {
                 }
             }
             if !leaf {
-                let k = self.kopt_level(i + 1, g2, xs, ys, cand, added, best.as_deref_mut());
+                let k = self.kopt_level::<R>(i + 1, g2, xs, ys, cand, added, best.as_deref_mut());
                 if k > 0 {
                     return k;
                 }
@@ -427,7 +494,7 @@ impl State<'_> {
     }
 
     /// Whether replacing the arcs x_i→succ(x_i) by x_i→y_{i+1} (cyclic) leaves one tour.
-    fn kopt_feasible(&self, xs: &[usize]) -> bool {
+    fn kopt_feasible<const R: bool>(&self, xs: &[usize]) -> bool {
         let k = xs.len();
         if k < 3 {
             // Exchanging two arcs without reversing a segment always splits the tour.
@@ -439,7 +506,7 @@ impl State<'_> {
         let mut by_rank = [0usize; KOPT_MAX];
         let mut p = [0usize; KOPT_MAX];
         for (pi, &x) in p.iter_mut().zip(xs) {
-            *pi = self.pos[x];
+            *pi = self.place::<R>(x);
         }
         for i in 0..k {
             rank[i] = p[..k].iter().filter(|&&q| q < p[i]).count();
@@ -457,7 +524,7 @@ impl State<'_> {
     }
 
     /// Rebuilds the tour after the k-opt move of `xs`, `ys`.
-    fn apply_kopt(&mut self, xs: &[usize], ys: &[usize]) {
+    fn apply_kopt<const R: bool>(&mut self, xs: &[usize], ys: &[usize]) {
         let n = self.n();
         let k = xs.len();
         let mut order = std::mem::take(&mut self.scratch);
@@ -467,8 +534,11 @@ impl State<'_> {
             order.push(v);
             v = match xs.iter().position(|&x| x == v) {
                 Some(i) => ys[(i + 1) % k],
-                None => self.succ(v),
+                None => self.next::<R>(v),
             };
+        }
+        if R {
+            order.reverse();
         }
         self.scratch = std::mem::replace(&mut self.order, order);
         self.update_positions();
@@ -476,7 +546,7 @@ impl State<'_> {
     }
 
     /// Local search with don't-look bits until no candidate move improves.
-    fn local_search(&mut self, cand: &[Vec<usize>], queue: &mut Vec<usize>, max_depth: usize) {
+    fn local_search(&mut self, cand: &Candidates, queue: &mut Vec<usize>, max_depth: usize) {
         let n = self.n();
         let mut active = vec![false; n];
         for &v in queue.iter() {
@@ -565,8 +635,8 @@ fn double_bridge(tour: &[usize], rng: &mut Rng) -> Option<(Vec<usize>, [usize; 6
     Some((kicked, ends))
 }
 
-/// Trials without improvement after which the automatic budget stops (once its minimum is
-/// spent): n, growing to n²/40 above 40 cities, where a kick is less likely to reach the part
+/// Trials without improvement, per unit of `trials_per_city`, after which the automatic budget
+/// stops (once its minimum is spent): n, growing to n²/40 above 40 cities, where a kick is less likely to reach the part
 /// of the tour that still needs work and a trial is a smaller part of the time than the lower
 /// bound.
 fn improvement_window(n: usize) -> usize {
@@ -623,22 +693,33 @@ pub fn solve(
             trials: 0,
         });
     }
-    // Successor candidates of city i: the cities among the α-candidates of its twin n + i.
+    // Successor candidates of city i: the cities among the α-candidates of its twin n + i;
+    // predecessor candidates: the twins among the α-candidates of city i.
     let sym = alpha_candidates(m, &bound.pi, cfg.candidates)?;
-    let cand: Vec<Vec<usize>> = (0..n)
-        .map(|i| {
-            sym[n + i]
-                .iter()
-                .copied()
-                .filter(|&j| j < n && j != i)
-                .collect()
-        })
-        .collect();
+    let mut cand = Candidates {
+        succ: (0..n)
+            .map(|i| {
+                sym[n + i]
+                    .iter()
+                    .copied()
+                    .filter(|&j| j < n && j != i)
+                    .collect()
+            })
+            .collect(),
+        pred: (0..n)
+            .map(|i| {
+                sym[i]
+                    .iter()
+                    .filter(|&&j| j >= n && j - n != i)
+                    .map(|&j| j - n)
+                    .collect()
+            })
+            .collect(),
+    };
     // The assignment relaxation: a second lower bound, its cheapest reduced-cost arcs as extra
     // candidates, and Karp's patching of its cycles as the first tour.
     let tol = |x: f64| 1e-9 * x.abs().max(1.0);
     let ap = assignment(m);
-    let mut cand = cand;
     let mut lower_bound = bound.lower_bound;
     let mut order = Vec::with_capacity(n);
     // When the assignment bound is at least as tight as Held–Karp (the cycles of the assignment
@@ -647,10 +728,10 @@ pub fn solve(
         .as_ref()
         .filter(|ap| ap.cost >= bound.lower_bound - tol(bound.lower_bound))
     {
-        for (i, list) in cand.iter_mut().enumerate() {
+        let extend = |list: &mut Vec<usize>, reduced: &dyn Fn(usize) -> f64, i: usize| {
             let mut extra: Vec<(f64, usize)> = (0..n)
                 .filter(|&j| j != i)
-                .map(|j| (ap.reduced(m, i, j), j))
+                .map(|j| (reduced(j), j))
                 .collect();
             extra.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             for &(_, j) in extra.iter().take(AP_CANDIDATES) {
@@ -658,6 +739,10 @@ pub fn solve(
                     list.push(j);
                 }
             }
+        };
+        for i in 0..n {
+            extend(&mut cand.succ[i], &|j| ap.reduced(m, i, j), i);
+            extend(&mut cand.pred[i], &|j| ap.reduced(m, j, i), i);
         }
         let succ = patch(m, &ap.succ);
         let mut x = 0;
@@ -670,7 +755,7 @@ pub fn solve(
         lower_bound = lower_bound.max(ap.cost);
     }
     if order.len() != n {
-        order = nearest_neighbour(m, &cand);
+        order = nearest_neighbour(m, &cand.succ);
     }
     let mut st = State {
         m,
@@ -702,8 +787,13 @@ pub fn solve(
             MIN_AUTO_TRIALS
         };
         let base = cfg.trials_per_city.saturating_mul(n).max(floor);
-        let cap = base.max(MAX_TRIALS_PER_CITY.saturating_mul(n));
-        (base, cap, improvement_window(n))
+        let cap = if cfg.continue_while_improving {
+            base.max(MAX_TRIALS_PER_CITY.saturating_mul(n))
+        } else {
+            base
+        };
+        let window = cfg.trials_per_city.saturating_mul(improvement_window(n));
+        (base, cap, window)
     } else {
         (cfg.max_trials, cfg.max_trials, 0)
     };
@@ -744,7 +834,7 @@ pub fn solve(
             // The current tour is stuck: restart from a new local optimum. Improving basic moves
             // suffice there (the restart is for diversity), and keep restarts cheap.
             run_stall = 0;
-            let order = candidate_walk(&cand, &mut rng);
+            let order = candidate_walk(&cand.succ, &mut rng);
             st.set_order(order);
             let mut queue: Vec<usize> = (0..n).collect();
             st.local_search(&cand, &mut queue, cfg.max_depth.min(1));

@@ -1,11 +1,9 @@
 //! The solver on the TSPLIB ATSP instances of `../shared/data/tsplib/` (skipped with a message
 //! when the folder is absent).
 //!
-//! Every test uses the default settings (seed 1). With them the solver reaches every published
-//! optimum but those of [`KNOWN_MISSES`] (ftv35, ftv38), which stay within [`MISS_GAP`].
-//! `instances_under_100_nodes` runs in CI; `larger_instances` (n ≥ 100, every optimum reached)
-//! and `all_published_optima` (the target: no misses; it does not pass yet) are ignored — run
-//! them with `cargo test --release -p topo-tsp --test tsplib_optima -- --ignored`.
+//! Every test uses the default settings (seed 1) and requires the published optimum.
+//! `instances_under_100_nodes` runs in CI; `larger_instances` (n ≥ 100) is ignored — run it
+//! with `cargo test --release -p topo-tsp --test tsplib_optima -- --ignored`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stderr)]
 
 use std::path::{Path, PathBuf};
@@ -41,22 +39,7 @@ fn optima(dir: &Path) -> Vec<(String, usize, f64)> {
         .collect()
 }
 
-/// Instances whose optimum the default settings do not reach yet.
-const KNOWN_MISSES: [&str; 2] = ["ftv35", "ftv38"];
-
-/// The largest relative gap allowed on [`KNOWN_MISSES`].
-const MISS_GAP: f64 = 0.015;
-
-/// The gap allowed on an instance by the non-target tests: none, or [`MISS_GAP`] on a known miss.
-fn allowed_gap(name: &str) -> f64 {
-    if KNOWN_MISSES.contains(&name) {
-        MISS_GAP
-    } else {
-        0.0
-    }
-}
-
-fn check(dir: &Path, name: &str, n: usize, opt: f64, max_gap: f64) {
+fn check(dir: &Path, name: &str, n: usize, opt: f64) {
     let text = std::fs::read_to_string(dir.join(format!("{name}.atsp"))).unwrap();
     let inst = parse_tsplib(&text).unwrap();
     let sol = solve(&inst.matrix, &SolverConfig::default(), || false).unwrap();
@@ -84,12 +67,11 @@ fn check(dir: &Path, name: &str, n: usize, opt: f64, max_gap: f64) {
         "{name}: bound {} above the optimum {opt}",
         sol.lower_bound
     );
-    let gap = (sol.tour.length - opt) / opt;
     assert!(
-        gap <= max_gap,
+        sol.tour.length <= opt,
         "{name}: {} is {:.3} % above the optimum {opt}",
         sol.tour.length,
-        100.0 * gap
+        100.0 * (sol.tour.length - opt) / opt
     );
 }
 
@@ -97,7 +79,7 @@ fn check(dir: &Path, name: &str, n: usize, opt: f64, max_gap: f64) {
 fn instances_under_100_nodes() {
     let Some(dir) = data_dir() else { return };
     for (name, n, opt) in optima(&dir).into_iter().filter(|r| r.1 < 100) {
-        check(&dir, &name, n, opt, allowed_gap(&name));
+        check(&dir, &name, n, opt);
     }
 }
 
@@ -106,15 +88,6 @@ fn instances_under_100_nodes() {
 fn larger_instances() {
     let Some(dir) = data_dir() else { return };
     for (name, n, opt) in optima(&dir).into_iter().filter(|r| r.1 >= 100) {
-        check(&dir, &name, n, opt, allowed_gap(&name));
-    }
-}
-
-#[test]
-#[ignore = "the target of the solver issue; the optima of KNOWN_MISSES are not reached yet"]
-fn all_published_optima() {
-    let Some(dir) = data_dir() else { return };
-    for (name, n, opt) in optima(&dir) {
-        check(&dir, &name, n, opt, 0.0);
+        check(&dir, &name, n, opt);
     }
 }
