@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 use rustc_hash::{FxHashMap, FxHashSet};
 
-use crate::grid::{Cell, FACES, Grid, NEIGHBOURS_26};
+use crate::grid::{Cell, FACES, Grid, MAX_CELLS_PER_AXIS, NEIGHBOURS_26};
 use crate::map::{CellState, FrameUpdate, VoxelMap};
 use crate::{FrontierError, Result};
 
@@ -251,12 +251,12 @@ impl Frontiers {
         let removed = self.clusters.keys().copied().collect();
         self.clusters.clear();
         self.owner.clear();
-        let mut pool = FxHashSet::default();
+        let mut pool = Vec::new();
         let mut examined = 0;
         map.for_each_known(|c, s| {
             examined += 1;
             if s == CellState::Free && Self::is_frontier_in(map, c) {
-                pool.insert(c.key());
+                pool.push(c.key());
             }
         });
         let added = self.grow(map, pool);
@@ -272,20 +272,32 @@ impl Frontiers {
     /// after a skipped one, call [`Frontiers::rebuild`].
     pub fn update(&mut self, map: &VoxelMap, update: &FrameUpdate) -> FrontierDelta {
         let grid = map.grid();
-        let mut candidates = FxHashSet::default();
+        // The changed cells and their face neighbours, each once, in a deterministic order.
+        let mut lo = [u32::MAX; 3];
+        let mut hi = [0u32; 3];
         for ch in &update.changed {
-            candidates.insert(ch.cell.key());
+            for (k, v) in [ch.cell.x, ch.cell.y, ch.cell.z].into_iter().enumerate() {
+                lo[k] = lo[k].min(v.saturating_sub(1));
+                hi[k] = hi[k].max(v + 1);
+            }
+        }
+        let mut seen = CellSet::empty(lo, hi);
+        let mut keys = Vec::with_capacity(2 * update.changed.len());
+        for ch in &update.changed {
+            if seen.insert(ch.cell) {
+                keys.push(ch.cell.key());
+            }
             for d in &FACES {
-                if let Some(n) = grid.offset(ch.cell, *d) {
-                    candidates.insert(n.key());
+                if let Some(n) = grid.offset(ch.cell, *d)
+                    && seen.insert(n)
+                {
+                    keys.push(n.key());
                 }
             }
         }
-        let mut keys: Vec<u64> = candidates.into_iter().collect();
-        keys.sort_unstable();
         let examined = keys.len();
         let mut dirty = FxHashSet::default();
-        let mut pool = FxHashSet::default();
+        let mut pool = Vec::new();
         for k in keys {
             let c = Cell::from_key(k);
             let now = Self::is_frontier_in(map, c);
@@ -295,7 +307,7 @@ impl Frontiers {
                     dirty.insert(id);
                 }
                 (None, true) => {
-                    pool.insert(k);
+                    pool.push(k);
                     for d in &NEIGHBOURS_26 {
                         if let Some(id) = grid.offset(c, *d).and_then(|n| self.owner.get(&n.key()))
                         {
@@ -310,12 +322,14 @@ impl Frontiers {
         removed.sort_unstable();
         for id in &removed {
             if let Some(cl) = self.clusters.remove(id) {
-                for c in cl.cells {
-                    let k = c.key();
-                    if self.owner.remove(&k).is_some() {
-                        pool.insert(k);
-                    }
-                }
+                // Cells still owned by the dissolved cluster are still frontier cells; their
+                // owner entries are overwritten when they are grown again.
+                pool.extend(
+                    cl.cells
+                        .iter()
+                        .map(|c| c.key())
+                        .filter(|k| self.owner.get(k) == Some(id)),
+                );
             }
         }
         let added = self.grow(map, pool);
@@ -326,28 +340,25 @@ impl Frontiers {
         }
     }
 
-    /// Groups the pool into 26-connected regions, splits them, and records the clusters.
-    fn grow(&mut self, map: &VoxelMap, mut pool: FxHashSet<u64>) -> Vec<ClusterId> {
+    /// Groups the pool (distinct frontier cells without a live cluster) into 26-connected
+    /// regions, splits them, and records the clusters.
+    fn grow(&mut self, map: &VoxelMap, mut seeds: Vec<u64>) -> Vec<ClusterId> {
         let grid = map.grid();
-        let mut seeds: Vec<u64> = pool.iter().copied().collect();
         seeds.sort_unstable();
+        let mut pool = CellSet::new(&seeds);
         let mut added = Vec::new();
         let mut stack = Vec::new();
         for seed in seeds {
-            if !pool.remove(&seed) {
+            let seed = Cell::from_key(seed);
+            if !pool.remove(seed) {
                 continue;
             }
-            let mut region = vec![Cell::from_key(seed)];
-            stack.push(Cell::from_key(seed));
+            let mut region = vec![seed];
+            stack.push(seed);
             while let Some(c) = stack.pop() {
-                for d in &NEIGHBOURS_26 {
-                    if let Some(n) = grid.offset(c, *d)
-                        && pool.remove(&n.key())
-                    {
-                        region.push(n);
-                        stack.push(n);
-                    }
-                }
+                let before = region.len();
+                pool.take_neighbours(c, &mut region);
+                stack.extend_from_slice(&region[before..]);
             }
             let mut parts = Vec::new();
             split(grid, region, self.config.max_cluster_radius, &mut parts);
@@ -363,6 +374,158 @@ impl Frontiers {
             }
         }
         added
+    }
+}
+
+/// A set of cells for region growing: a bitset over the bounding box of its cells when that
+/// box is small enough, else a hash set.
+enum CellSet {
+    Bits {
+        min: [u32; 3],
+        dims: [usize; 3],
+        bits: Vec<u64>,
+    },
+    Hash(FxHashSet<u64>),
+}
+
+impl CellSet {
+    /// Largest box, in cells, kept as a bitset (8 MiB).
+    const MAX_BITS: usize = 1 << 26;
+
+    /// The set of the cells of `keys`.
+    fn new(keys: &[u64]) -> Self {
+        let mut min = [u32::MAX; 3];
+        let mut max = [0u32; 3];
+        for k in keys {
+            let c = Cell::from_key(*k);
+            for (i, v) in [c.x, c.y, c.z].into_iter().enumerate() {
+                min[i] = min[i].min(v);
+                max[i] = max[i].max(v);
+            }
+        }
+        let mut set = Self::empty(min, max);
+        for k in keys {
+            set.insert(Cell::from_key(*k));
+        }
+        set
+    }
+
+    /// An empty set for cells in the box from `min` to `max` (inclusive; an empty box when
+    /// `min` exceeds `max`).
+    fn empty(min: [u32; 3], max: [u32; 3]) -> Self {
+        let dims = [0, 1, 2].map(|i| (max[i].saturating_sub(min[i]) as usize) + 1);
+        let volume = dims[0].saturating_mul(dims[1]).saturating_mul(dims[2]);
+        if (0..3).any(|i| min[i] > max[i]) || volume > Self::MAX_BITS {
+            return Self::Hash(FxHashSet::default());
+        }
+        Self::Bits {
+            min,
+            dims,
+            bits: vec![0u64; volume.div_ceil(64)],
+        }
+    }
+
+    /// The bit of `c`, if it lies in the box.
+    #[inline]
+    fn bit(min: &[u32; 3], dims: &[usize; 3], c: Cell) -> Option<(usize, u64)> {
+        let (x, y, z) = (
+            c.x.checked_sub(min[0])? as usize,
+            c.y.checked_sub(min[1])? as usize,
+            c.z.checked_sub(min[2])? as usize,
+        );
+        if x >= dims[0] || y >= dims[1] || z >= dims[2] {
+            return None;
+        }
+        let i = x + dims[0] * (y + dims[1] * z);
+        Some((i >> 6, 1u64 << (i & 63)))
+    }
+
+    /// Adds `c` (which must lie in the box of a bitset); whether it was new.
+    #[inline]
+    fn insert(&mut self, c: Cell) -> bool {
+        match self {
+            Self::Bits { min, dims, bits } => match Self::bit(min, dims, c) {
+                Some((w, bit)) => {
+                    let new = bits[w] & bit == 0;
+                    bits[w] |= bit;
+                    new
+                }
+                None => false,
+            },
+            Self::Hash(h) => h.insert(c.key()),
+        }
+    }
+
+    /// Removes the 26 neighbours of `c` that are in the set and appends them to `out`.
+    fn take_neighbours(&mut self, c: Cell, out: &mut Vec<Cell>) {
+        match self {
+            Self::Bits { min, dims, bits } => {
+                // Local coordinates; neighbours outside the box are skipped.
+                let l = [
+                    i64::from(c.x) - i64::from(min[0]),
+                    i64::from(c.y) - i64::from(min[1]),
+                    i64::from(c.z) - i64::from(min[2]),
+                ];
+                for d in &NEIGHBOURS_26 {
+                    let n = [0, 1, 2].map(|k| l[k] + i64::from(d[k]));
+                    let inside = (0..3).all(|k| usize::try_from(n[k]).is_ok_and(|v| v < dims[k]));
+                    if !inside {
+                        continue;
+                    }
+                    // Inside the box: non-negative and below the grid's u32 sizes, so the casts
+                    // are exact.
+                    #[allow(clippy::cast_sign_loss, clippy::cast_possible_truncation)]
+                    let n = n.map(|v| v as usize);
+                    let i = n[0] + dims[0] * (n[1] + dims[1] * n[2]);
+                    let (w, bit) = (i >> 6, 1u64 << (i & 63));
+                    if bits[w] & bit != 0 {
+                        bits[w] &= !bit;
+                        #[allow(clippy::cast_possible_truncation)]
+                        out.push(Cell::new(
+                            min[0] + n[0] as u32,
+                            min[1] + n[1] as u32,
+                            min[2] + n[2] as u32,
+                        ));
+                    }
+                }
+            }
+            Self::Hash(h) => {
+                for d in &NEIGHBOURS_26 {
+                    let (Some(x), Some(y), Some(z)) = (
+                        c.x.checked_add_signed(d[0]),
+                        c.y.checked_add_signed(d[1]),
+                        c.z.checked_add_signed(d[2]),
+                    ) else {
+                        continue;
+                    };
+                    let n = Cell::new(x, y, z);
+                    // Pool cells are grid cells, far below the 21-bit key limit.
+                    if x < MAX_CELLS_PER_AXIS
+                        && y < MAX_CELLS_PER_AXIS
+                        && z < MAX_CELLS_PER_AXIS
+                        && h.remove(&n.key())
+                    {
+                        out.push(n);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Removes `c`; whether it was there.
+    #[inline]
+    fn remove(&mut self, c: Cell) -> bool {
+        match self {
+            Self::Bits { min, dims, bits } => match Self::bit(min, dims, c) {
+                Some((w, bit)) => {
+                    let was = bits[w] & bit != 0;
+                    bits[w] &= !bit;
+                    was
+                }
+                None => false,
+            },
+            Self::Hash(h) => h.remove(&c.key()),
+        }
     }
 }
 
@@ -466,6 +629,52 @@ fn shape(map: &VoxelMap, id: ClusterId, cells: Vec<Cell>) -> Cluster {
 mod tests {
     use super::*;
     use crate::{Bounds, MapConfig};
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The bitset and the hash set agree with a plain set on insertions, removals and
+        /// neighbour takes.
+        #[test]
+        fn cell_sets_agree(
+            cells in proptest::collection::vec((0u32..12, 0u32..12, 0u32..6), 1..80),
+            probes in proptest::collection::vec((0u32..14, 0u32..14, 0u32..8), 1..40),
+        ) {
+            let cells: Vec<Cell> = cells.into_iter().map(|(x, y, z)| Cell::new(x, y, z)).collect();
+            let mut keys: Vec<u64> = cells.iter().map(|c| c.key()).collect();
+            keys.sort_unstable();
+            keys.dedup();
+            let mut bits = CellSet::new(&keys);
+            let is_bits = matches!(bits, CellSet::Bits { .. });
+            prop_assert!(is_bits);
+            let mut hash = CellSet::Hash(keys.iter().copied().collect());
+            let mut reference: FxHashSet<u64> = keys.iter().copied().collect();
+            for (x, y, z) in probes {
+                let c = Cell::new(x, y, z);
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                bits.take_neighbours(c, &mut a);
+                hash.take_neighbours(c, &mut b);
+                let mut expected: Vec<Cell> = NEIGHBOURS_26
+                    .iter()
+                    .filter_map(|d| {
+                        let n = Cell::new(
+                            x.checked_add_signed(d[0])?,
+                            y.checked_add_signed(d[1])?,
+                            z.checked_add_signed(d[2])?,
+                        );
+                        reference.remove(&n.key()).then_some(n)
+                    })
+                    .collect();
+                a.sort_unstable();
+                b.sort_unstable();
+                expected.sort_unstable();
+                prop_assert_eq!(&a, &expected);
+                prop_assert_eq!(&b, &expected);
+                let was = reference.remove(&c.key());
+                prop_assert_eq!(bits.remove(c), was);
+                prop_assert_eq!(hash.remove(c), was);
+            }
+        }
+    }
 
     fn fan(map: &mut VoxelMap, o: Point3<f64>, r: f64) -> FrameUpdate {
         let pts: Vec<_> = (0..720)
