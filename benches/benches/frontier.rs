@@ -6,7 +6,7 @@
 //! ≤ 3 ms; viewpoint sampling, visibility and dynamic clustering for 50 clusters ≤ 10 ms.
 //!
 //! Run with `cargo bench -p fu-mpc-benches --bench frontier`. The viewpoint bench explores
-//! an office floor with a sensor range of 10 m (43 clusters of at least 20 cells); set
+//! an office floor with a sensor range of 12 m (59 clusters of at least 20 cells); set
 //! `FRONTIER_BENCH_RANGE` (metres) to change the range and with it the cluster count.
 #![allow(clippy::unwrap_used, clippy::print_stderr)]
 
@@ -173,7 +173,7 @@ fn bench_viewpoints(c: &mut Criterion) {
     let range: f64 = std::env::var("FRONTIER_BENCH_RANGE")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(10.0);
+        .unwrap_or(12.0);
     let path = [Point3::new(4.0, 15.0, 1.5), Point3::new(12.0, 15.0, 1.5)];
     let (_, map, f) = office_state(&path, range);
     let cfg = ViewpointConfig::default();

@@ -291,6 +291,9 @@ struct Pool<'a, F> {
     config: &'a ViewpointConfig,
     /// Whether cluster `i` passes r0 from candidate `v`.
     passes: FxHashMap<(u32, u32), bool>,
+    /// Visibility of the first 64 samples of cluster `i` from candidate `v`: which were
+    /// evaluated, and which of those are seen.
+    sample_bits: FxHashMap<(u32, u32), (u64, u64)>,
 }
 
 impl<F: FieldOfView> Pool<'_, F> {
@@ -314,20 +317,43 @@ impl<F: FieldOfView> Pool<'_, F> {
         let need = ((self.config.min_visibility * n as f64) - 1e-9)
             .ceil()
             .max(0.0) as usize;
-        let p = self.points[v];
         let (mut seen, mut left) = (0usize, n);
-        for c in cells {
+        for j in 0..n {
             if seen >= need || seen + left < need {
                 break;
             }
             left -= 1;
-            if cell_visible(self.map, &p, *c, self.fov, self.config) {
+            if self.sample_visible(i, v, j) {
                 seen += 1;
             }
         }
         let ok = seen >= need;
         self.passes.insert(key, ok);
         ok
+    }
+
+    /// Whether sample `j` of cluster `i` is seen from candidate `v` (memoised for the first 64
+    /// samples: r0 tests and the choice of representatives ask for the same cells).
+    fn sample_visible(&mut self, i: usize, v: usize, j: usize) -> bool {
+        let c = self.samples[i][j];
+        let p = self.points[v];
+        if j >= 64 {
+            return cell_visible(self.map, &p, c, self.fov, self.config);
+        }
+        // Cluster and candidate counts fit u32.
+        #[allow(clippy::cast_possible_truncation)]
+        let key = (i as u32, v as u32);
+        let bit = 1u64 << j;
+        let entry = self.sample_bits.entry(key).or_insert((0, 0));
+        if entry.0 & bit != 0 {
+            return entry.1 & bit != 0;
+        }
+        let seen = cell_visible(self.map, &p, c, self.fov, self.config);
+        entry.0 |= bit;
+        if seen {
+            entry.1 |= bit;
+        }
+        seen
     }
 
     /// Whether candidate `v` is close enough to cluster `i` to be in its visible region.
@@ -338,13 +364,9 @@ impl<F: FieldOfView> Pool<'_, F> {
     /// Cells of cluster `i` seen from `v`: estimated from the samples, or counted exactly.
     fn seen(&mut self, i: usize, v: usize, exact: bool) -> f64 {
         if !exact {
-            let cells = &self.samples[i];
-            let p = self.points[v];
-            let k = cells
-                .iter()
-                .filter(|c| cell_visible(self.map, &p, **c, self.fov, self.config))
-                .count();
-            return ratio(k, cells.len()) * self.clusters[i].score();
+            let n = self.samples[i].len();
+            let k = (0..n).filter(|&j| self.sample_visible(i, v, j)).count();
+            return ratio(k, n) * self.clusters[i].score();
         }
         let p = self.points[v];
         let seen = self.clusters[i]
@@ -427,6 +449,7 @@ pub fn plan_targets(
         fov,
         config,
         passes: FxHashMap::default(),
+        sample_bits: FxHashMap::default(),
     };
     let mut plan = Plan::default();
     // Each cluster's own candidates, pooled.
