@@ -393,6 +393,12 @@ impl VoxelMap {
         {
             self.directory[dir] = b as u32;
         }
+        if self.cells.capacity() < self.cells.len() + BLOCK_CELLS {
+            // Grow by a quarter rather than double: cell storage dominates the map's memory.
+            let more = (self.cells.len() / 4).max(16 * BLOCK_CELLS);
+            self.cells.reserve_exact(more);
+            self.marks.reserve_exact(more / BLOCK_CELLS);
+        }
         self.cells
             .extend(core::iter::repeat_n(UNKNOWN, BLOCK_CELLS));
         self.known.push(0);
