@@ -6,6 +6,7 @@ use std::num::NonZeroUsize;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use lidar_kinematics::{KinematicChain, LidarSensor};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+use rayon::prelude::*;
 
 use crate::error::invalid;
 use crate::{PeriodicPwl, Result};
@@ -115,28 +116,56 @@ impl FisherTable {
         let skipped = cloud.len() - points.len();
         let normals = normals(&points, config.neighbours);
         let nc = config.candidates;
-        let mut information = vec![Matrix3::zeros(); nc];
-        for (c, f) in information.iter_mut().enumerate() {
-            // Knot counts are far below 2^53.
-            #[allow(clippy::cast_precision_loss)]
-            let theta = TAU * c as f64 / nc as f64;
-            let gate = sensor.visibility_gate(chain, body_pose, theta)?;
-            let mut acc = [0.0f64; 6];
-            for (p, n) in points.iter().zip(&normals) {
-                if gate.contains(&Point3::new(p[0], p[1], p[2])) {
+        let gates = (0..nc)
+            .map(|c| {
+                // Knot counts are far below 2^53.
+                #[allow(clippy::cast_precision_loss)]
+                let theta = TAU * c as f64 / nc as f64;
+                sensor.visibility_gate(chain, body_pose, theta)
+            })
+            .collect::<core::result::Result<Vec<_>, _>>()?;
+        // Points outer, angles inner: each point's n nᵀ is formed once and the gates stay in
+        // cache. Fixed chunks of points run in parallel and their sums are added in chunk
+        // order, so the table does not depend on the number of threads.
+        let partial: Vec<Vec<[f64; 6]>> = points
+            .par_chunks(GATE_CHUNK)
+            .zip(normals.par_chunks(GATE_CHUNK))
+            .map(|(pts, nrm)| {
+                let mut acc = vec![[0.0f64; 6]; nc];
+                for (p, n) in pts.iter().zip(nrm) {
+                    let p = Point3::new(p[0], p[1], p[2]);
                     // eq. (15): the six distinct entries of n nᵀ.
-                    acc[0] += n.x * n.x;
-                    acc[1] += n.x * n.y;
-                    acc[2] += n.x * n.z;
-                    acc[3] += n.y * n.y;
-                    acc[4] += n.y * n.z;
-                    acc[5] += n.z * n.z;
+                    let nn = [
+                        n.x * n.x,
+                        n.x * n.y,
+                        n.x * n.z,
+                        n.y * n.y,
+                        n.y * n.z,
+                        n.z * n.z,
+                    ];
+                    for (gate, a) in gates.iter().zip(acc.iter_mut()) {
+                        if gate.contains(&p) {
+                            for (ai, v) in a.iter_mut().zip(nn) {
+                                *ai += v;
+                            }
+                        }
+                    }
+                }
+                acc
+            })
+            .collect();
+        let mut acc = vec![[0.0f64; 6]; nc];
+        for part in &partial {
+            for (a, b) in acc.iter_mut().zip(part) {
+                for (ai, bi) in a.iter_mut().zip(b) {
+                    *ai += bi;
                 }
             }
-            *f = Matrix3::new(
-                acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5],
-            );
         }
+        let information: Vec<Matrix3<f64>> = acc
+            .iter()
+            .map(|a| Matrix3::new(a[0], a[1], a[2], a[1], a[3], a[4], a[2], a[4], a[5]))
+            .collect();
         let eps = config.epsilon;
         let values = information
             .iter()
@@ -195,6 +224,12 @@ pub(crate) fn check_neighbours(k: usize) -> Result<()> {
     Ok(())
 }
 
+/// Points per parallel task of the visibility sums in [`FisherTable::build`].
+const GATE_CHUNK: usize = 2048;
+
+/// Points per parallel task of [`normals`].
+const NORMAL_CHUNK: usize = 512;
+
 /// Unit normals by PCA of each point's K nearest neighbours (K capped at the cloud size); a
 /// point with a degenerate neighbourhood gets the z axis.
 pub(crate) fn normals(points: &[[f64; 3]], k: usize) -> Vec<Vector3<f64>> {
@@ -207,12 +242,16 @@ pub(crate) fn normals(points: &[[f64; 3]], k: usize) -> Vec<Vector3<f64>> {
     let Some(k) = NonZeroUsize::new(k.min(points.len())) else {
         return vec![Vector3::z(); points.len()];
     };
+    // Each point's normal is independent of the others: the queries run on rayon's threads,
+    // in fixed chunks, and the result is the same on any number of threads.
     points
-        .iter()
+        .par_iter()
+        .with_min_len(NORMAL_CHUNK)
         .map(|p| {
             let nn = tree
                 .query(p)
                 .nearest_n::<SquaredEuclidean<f64>>(k)
+                .unsorted()
                 .execute();
             let mut mean = Vector3::zeros();
             let mut count = 0.0;

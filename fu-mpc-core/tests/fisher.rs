@@ -167,3 +167,35 @@ fn the_table_is_send_and_sync() {
     fn check<T: Send + Sync>() {}
     check::<FisherTable>();
 }
+
+/// The parallel normals and visibility sums give the same bits on 1 and 3 threads.
+#[test]
+fn the_table_does_not_depend_on_the_thread_count() {
+    // Three shifted copies of the room: more points than one parallel chunk.
+    let base = cloud();
+    let big: Vec<Point3<f64>> = (0..3)
+        .flat_map(|k| {
+            let dx = 0.13 * f64::from(k);
+            base.iter().map(move |p| Point3::new(p.x + dx, p.y, p.z))
+        })
+        .collect();
+    let build = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            FisherTable::build(
+                &big,
+                &Isometry3::identity(),
+                &KinematicChain::default(),
+                &sensor(),
+                &FisherConfig::default(),
+            )
+            .unwrap()
+        })
+    };
+    let (one, three) = (build(1), build(3));
+    assert!(one.information().iter().any(|f| f.norm() > 0.0));
+    assert_eq!(one, three);
+}

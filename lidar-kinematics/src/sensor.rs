@@ -215,7 +215,12 @@ impl FieldOfView {
     /// Whether a direction (any non-zero length) lies inside the field. The zero vector does not.
     #[inline]
     pub fn contains(&self, dir: &Vector3<f64>) -> bool {
-        let n = dir.norm();
+        self.contains_with_norm(dir, dir.norm())
+    }
+
+    /// [`FieldOfView::contains`] for a direction whose norm `n` is known.
+    #[inline]
+    fn contains_with_norm(&self, dir: &Vector3<f64>, n: f64) -> bool {
         if !(n > 0.0 && n.is_finite()) {
             return false;
         }
@@ -226,7 +231,8 @@ impl FieldOfView {
         if self.is_full_azimuth() {
             return true;
         }
-        let r = dir.x.hypot(dir.y);
+        // ‖d‖ is finite, so x² + y² cannot overflow: no need for the slower hypot.
+        let r = (dir.x * dir.x + dir.y * dir.y).sqrt();
         if r == 0.0 {
             // Straight up or down: azimuth 0 by convention, as atan2(0, 0).
             return (-self.azimuth_min).rem_euclid(TAU) <= self.azimuth_width;
@@ -672,7 +678,8 @@ impl LidarSensor {
     /// Whether a point given in the LiDAR frame is within range and inside the field of view.
     #[inline]
     pub fn sees_in_lidar_frame(&self, p: &Point3<f64>) -> bool {
-        self.range.contains(p.coords.norm()) && self.fov.contains(&p.coords)
+        let n = p.coords.norm();
+        self.range.contains(n) && self.fov.contains_with_norm(&p.coords, n)
     }
 
     /// Whether the LiDAR, at motor angle θ \[rad\] on a body at `body_pose`, can see a world point
