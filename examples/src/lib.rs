@@ -4,8 +4,9 @@
 //! files. Today it holds the trajectory metrics ([`metrics`]), the world queries over parry3d
 //! ([`world`]), PCD scene loading ([`cloud_io`]) and generated scenes with their explorable
 //! space ([`scene`]), the simulated LiDAR ([`lidar`]), and the UAV's flat attitude and IMU
-//! ([`uav`]), and point-to-plane registration for the odometry ([`registration`]), and the iCR paper's
-//! 2-D experiment ([`icr2d`]); the odometry loop and the explorer follow.
+//! ([`uav`]), point-to-plane registration ([`registration`]) and the LiDAR-inertial odometry built on
+//! it ([`odometry`]), and the iCR paper's 2-D experiment ([`icr2d`]); the flight loop and
+//! the explorer follow.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
@@ -13,6 +14,7 @@ pub mod cloud_io;
 pub mod icr2d;
 pub mod lidar;
 pub mod metrics;
+pub mod odometry;
 pub mod registration;
 pub mod rng;
 pub mod scene;
