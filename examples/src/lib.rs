@@ -5,12 +5,13 @@
 //! ([`world`]), PCD scene loading ([`cloud_io`]) and generated scenes with their explorable
 //! space ([`scene`]), the simulated LiDAR ([`lidar`]), and the UAV's flat attitude and IMU
 //! ([`uav`]), point-to-plane registration ([`registration`]) and the LiDAR-inertial odometry built on
-//! it ([`odometry`]), and the iCR paper's 2-D experiment ([`icr2d`]); the flight loop and
-//! the explorer follow.
+//! it ([`odometry`]), a whole flight along a fixed route ([`flight`]), and the iCR paper's
+//! 2-D experiment ([`icr2d`]); the explorer follows.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 pub mod cloud_io;
+pub mod flight;
 pub mod icr2d;
 pub mod lidar;
 pub mod metrics;

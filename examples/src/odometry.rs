@@ -6,6 +6,8 @@
 //! injected by hand. The IMU biases are not estimated (the registration corrects the drift
 //! they cause at every frame).
 
+use core::f64::consts::{PI, TAU};
+
 use lidar_kinematics::{
     AngleSample, DeskewTarget, Deskewer, KinematicChain, KinematicsError, PoseSample, TimedPoint,
 };
@@ -207,7 +209,9 @@ impl Odometry {
             && b.time < t_end
             && b.time > a.time
         {
-            let rate = (b.angle - a.angle) / (b.time - a.time);
+            // Encoders report angles in [0, 2π): the step between two reads is the short way.
+            let step = (b.angle - a.angle + PI).rem_euclid(TAU) - PI;
+            let rate = step / (b.time - a.time);
             angles.push(AngleSample::new(t_end, b.angle + rate * (t_end - b.time)));
         }
         self.timed.clear();

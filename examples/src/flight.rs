@@ -1,0 +1,459 @@
+//! A whole flight without planning: a fixed route through a scene, flown with the LiDAR on
+//! its motor, the IMU, the encoder and the odometry running, against the ground truth.
+//!
+//! The route ([`out_and_back_route`]) goes from the scene's start to the reachable point
+//! farthest along x at the start's height and back, along a shortest path that keeps a
+//! clearance; [`route_trajectory`] turns it into a MINCO trajectory within speed and
+//! acceleration limits. [`fly`] runs the sensors and the odometry along it. The UAV follows
+//! the planned trajectory exactly (its yaw fixed at 0): tracking in the estimated frame is
+//! not simulated yet.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use lidar_kinematics::{
+    AngleSample, Encoder, EncoderConfig, KinematicChain, KinematicsError, LidarSensor, MotorModel,
+    MotorState,
+};
+use minco::{MincoError, Optimizer, OptimizerConfig, Trajectory};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+use crate::lidar::{LidarNoise, LidarSim};
+use crate::odometry::{NavState, Odometry, OdometryConfig, OdometryError};
+use crate::scene::Scene;
+use crate::uav::{ImuNoise, ImuSim, body_rate, flat_attitude};
+use crate::world::World;
+
+/// Errors of a flight.
+#[derive(Debug, thiserror::Error)]
+pub enum FlightError {
+    /// No route with the required clearance.
+    #[error("no route: {0}")]
+    NoRoute(&'static str),
+    /// The trajectory optimiser failed.
+    #[error(transparent)]
+    Minco(#[from] MincoError),
+    /// A kinematics error (bad angle or pose).
+    #[error(transparent)]
+    Kinematics(#[from] KinematicsError),
+    /// The odometry failed.
+    #[error(transparent)]
+    Odometry(#[from] OdometryError),
+}
+
+/// Settings of a flight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlightConfig {
+    /// Height of the route \[m\] above the scene's lower bound; default 1.5.
+    pub height: f64,
+    /// Least clearance of the route's grid cells and shortcuts \[m\]; default 0.75.
+    pub clearance: f64,
+    /// Grid cell of the route search \[m\]; default 0.25.
+    pub grid: f64,
+    /// How far along x the route may go from the start \[m\]; default 80 (about 200 m out
+    /// and back).
+    pub reach: f64,
+    /// Speed and acceleration limits of the trajectory \[m/s\], \[m/s²\]; default 2 and 2.
+    pub v_max: f64,
+    /// See `v_max`.
+    pub a_max: f64,
+    /// Motor speed \[deg/s\]; default 100.
+    pub motor_speed_deg: f64,
+    /// Radius of the UAV \[m\]: a clearance below it is a collision; default 0.25.
+    pub radius: f64,
+    /// LiDAR noise.
+    pub lidar_noise: LidarNoise,
+    /// IMU noise.
+    pub imu_noise: ImuNoise,
+    /// The motor's encoder.
+    pub encoder: EncoderConfig,
+    /// The odometry.
+    pub odometry: OdometryConfig,
+}
+
+impl Default for FlightConfig {
+    fn default() -> Self {
+        Self {
+            height: 1.5,
+            clearance: 0.75,
+            grid: 0.25,
+            reach: 80.0,
+            v_max: 2.0,
+            a_max: 2.0,
+            motor_speed_deg: 100.0,
+            radius: 0.25,
+            lidar_noise: LidarNoise::default(),
+            imu_noise: ImuNoise::default(),
+            encoder: EncoderConfig::default(),
+            odometry: OdometryConfig::default(),
+        }
+    }
+}
+
+/// A 2-D grid of clearances at one height.
+struct Grid {
+    origin: Point3<f64>,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    clear: Vec<f64>,
+}
+
+impl Grid {
+    fn new(scene: &Scene, world: &World, z: f64, cell: f64) -> Self {
+        let ext = scene.max - scene.min;
+        // Scene extents over grid cells of centimetres and more: small counts.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let (nx, ny) = (
+            (ext.x / cell).floor().max(1.0) as usize,
+            (ext.y / cell).floor().max(1.0) as usize,
+        );
+        let origin = Point3::new(scene.min.x, scene.min.y, z);
+        let mut g = Self {
+            origin,
+            cell,
+            nx,
+            ny,
+            clear: Vec::with_capacity(nx * ny),
+        };
+        for y in 0..ny {
+            for x in 0..nx {
+                let p = g.center(x, y);
+                g.clear.push(world.distance(&p));
+            }
+        }
+        g
+    }
+
+    fn center(&self, x: usize, y: usize) -> Point3<f64> {
+        // Grid indices are small.
+        #[allow(clippy::cast_precision_loss)]
+        let (fx, fy) = (x as f64, y as f64);
+        self.origin + Vector3::new((fx + 0.5) * self.cell, (fy + 0.5) * self.cell, 0.0)
+    }
+
+    fn cell_of(&self, p: &Point3<f64>) -> Option<(usize, usize)> {
+        let g = (p - self.origin) / self.cell;
+        // Checked against the grid before the casts.
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            clippy::cast_precision_loss
+        )]
+        ((g.x >= 0.0 && g.y >= 0.0 && g.x < self.nx as f64 && g.y < self.ny as f64)
+            .then(|| (g.x as usize, g.y as usize)))
+    }
+
+    /// Shortest 8-connected path between two cells through cells of clearance ≥ `min`; the
+    /// step cost grows near obstacles so the path keeps to the middle of passages.
+    fn path(&self, from: usize, to: usize, min: f64) -> Option<Vec<usize>> {
+        let n = self.nx * self.ny;
+        let mut dist = vec![u64::MAX; n];
+        let mut prev = vec![usize::MAX; n];
+        let mut heap = BinaryHeap::new();
+        dist[from] = 0;
+        heap.push(Reverse((0u64, from)));
+        while let Some(Reverse((d, i))) = heap.pop() {
+            if i == to {
+                break;
+            }
+            if d > dist[i] {
+                continue;
+            }
+            let (x, y) = (i % self.nx, i / self.nx);
+            for (dx, dy) in [
+                (-1, -1),
+                (0, -1),
+                (1, -1),
+                (-1, 0),
+                (1, 0),
+                (-1, 1),
+                (0, 1),
+                (1, 1),
+            ] {
+                let (Some(x2), Some(y2)) = (x.checked_add_signed(dx), y.checked_add_signed(dy))
+                else {
+                    continue;
+                };
+                if x2 >= self.nx || y2 >= self.ny {
+                    continue;
+                }
+                let j = x2 + self.nx * y2;
+                let c = self.clear[j];
+                if c < min {
+                    continue;
+                }
+                let len = if dx != 0 && dy != 0 { 1.414 } else { 1.0 };
+                // Millimetre-scale integer costs keep the search exact and deterministic.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let step = (1000.0 * len * self.cell * (1.0 + 1.0 / c.max(1e-3))) as u64;
+                let nd = d + step;
+                if nd < dist[j] {
+                    dist[j] = nd;
+                    prev[j] = i;
+                    heap.push(Reverse((nd, j)));
+                }
+            }
+        }
+        if dist[to] == u64::MAX {
+            return None;
+        }
+        let mut path = vec![to];
+        while let Some(&last) = path.last() {
+            if last == from {
+                break;
+            }
+            path.push(prev[last]);
+        }
+        path.reverse();
+        Some(path)
+    }
+}
+
+/// Whether the segment keeps a clearance of at least `min` (sampled every 5 cm).
+fn segment_clear(world: &World, a: &Point3<f64>, b: &Point3<f64>, min: f64) -> bool {
+    let d = b - a;
+    // Route segments are metres long.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let steps = ((d.norm() / 0.05).ceil() as usize).max(1);
+    (0..=steps).all(|k| {
+        #[allow(clippy::cast_precision_loss)]
+        let s = k as f64 / steps as f64;
+        world.distance(&(a + d * s)) >= min
+    })
+}
+
+/// The route from the scene's start to the reachable point farthest along x (at most
+/// `config.reach` beyond the start) at the start's height and back: a shortest grid path with clearance ≥ `config.clearance`, shortened
+/// greedily while straight segments keep that clearance. Waypoints include both ends.
+///
+/// # Errors
+/// [`FlightError::NoRoute`] when the start has too little clearance or nothing is reachable.
+pub fn out_and_back_route(
+    scene: &Scene,
+    world: &World,
+    config: &FlightConfig,
+) -> Result<Vec<Point3<f64>>, FlightError> {
+    let z = scene.min.z + config.height;
+    let grid = Grid::new(scene, world, z, config.grid);
+    let start = Point3::new(scene.start.x, scene.start.y, z);
+    let (sx, sy) = grid
+        .cell_of(&start)
+        .ok_or(FlightError::NoRoute("start outside the scene"))?;
+    let s = sx + grid.nx * sy;
+    if grid.clear[s] < config.clearance {
+        return Err(FlightError::NoRoute("too little clearance at the start"));
+    }
+    // Reachable cells from the start, then the farthest along x (clearest on ties).
+    let min = config.clearance;
+    let mut seen = vec![false; grid.nx * grid.ny];
+    let mut stack = vec![s];
+    seen[s] = true;
+    let mut goal = s;
+    while let Some(i) = stack.pop() {
+        let (x, y) = (i % grid.nx, i / grid.nx);
+        let gx = goal % grid.nx;
+        let within = grid.center(x, y).x <= start.x + config.reach;
+        if within && (x > gx || (x == gx && grid.clear[i] > grid.clear[goal])) {
+            goal = i;
+        }
+        for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
+            let (Some(x2), Some(y2)) = (x.checked_add_signed(dx), y.checked_add_signed(dy)) else {
+                continue;
+            };
+            if x2 < grid.nx && y2 < grid.ny {
+                let j = x2 + grid.nx * y2;
+                if !seen[j] && grid.clear[j] >= min {
+                    seen[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+    }
+    if goal == s {
+        return Err(FlightError::NoRoute("nothing reachable from the start"));
+    }
+    let path = grid
+        .path(s, goal, min)
+        .ok_or(FlightError::NoRoute("no path to the far end"))?;
+    let cells: Vec<Point3<f64>> = path
+        .iter()
+        .map(|&i| grid.center(i % grid.nx, i / grid.nx))
+        .collect();
+    let mut out = vec![start];
+    let mut i = 0;
+    while i + 1 < cells.len() {
+        // The farthest cell still in straight view with the clearance.
+        let from = *out.last().unwrap_or(&start);
+        let mut j = i + 1;
+        while j + 1 < cells.len() && segment_clear(world, &from, &cells[j + 1], min) {
+            j += 1;
+        }
+        out.push(cells[j]);
+        i = j;
+    }
+    // And back along the same way.
+    let back: Vec<Point3<f64>> = out.iter().rev().skip(1).copied().collect();
+    out.extend(back);
+    Ok(out)
+}
+
+/// A minimum-jerk trajectory from rest to rest through the route's waypoints, kept within
+/// `corridor` \[m\] of its segments and within the speed and acceleration limits.
+///
+/// # Errors
+/// [`FlightError::NoRoute`] for fewer than two waypoints; optimiser errors.
+pub fn route_trajectory(
+    route: &[Point3<f64>],
+    config: &FlightConfig,
+    corridor: f64,
+) -> Result<Trajectory<3>, FlightError> {
+    let (Some(first), Some(last)) = (route.first(), route.last()) else {
+        return Err(FlightError::NoRoute("empty route"));
+    };
+    if route.len() < 2 {
+        return Err(FlightError::NoRoute("a route needs two waypoints"));
+    }
+    let rest = |p: &Point3<f64>| [[p.x, p.y, p.z], [0.0; 3], [0.0; 3]];
+    let inner: Vec<[f64; 3]> = route[1..route.len() - 1]
+        .iter()
+        .map(|p| [p.x, p.y, p.z])
+        .collect();
+    let mut cfg = OptimizerConfig::default().with_limits(config.v_max, config.a_max);
+    cfg.corridor_radius = Some(corridor);
+    // Hold the waypoints: free ones let an out-and-back route collapse onto its start.
+    cfg.waypoint_weight = 1e4;
+    let mut opt = Optimizer::<3, 3>::new(cfg, rest(first), rest(last), &inner)?;
+    Ok(opt.optimize()?.trajectory)
+}
+
+/// What a flight recorded.
+#[derive(Debug, Clone, Default)]
+pub struct FlightLog {
+    /// Frame end times \[s\].
+    pub times: Vec<f64>,
+    /// True body poses at the frame ends.
+    pub truth: Vec<Isometry3<f64>>,
+    /// Odometry poses at the frame ends.
+    pub estimate: Vec<Isometry3<f64>>,
+    /// Least distance from the true position to the world, at the IMU rate \[m\].
+    pub min_clearance: f64,
+    /// Times the clearance fell below the UAV's radius.
+    pub collisions: usize,
+    /// The odometry's local map at the end, in the world frame.
+    pub map: Vec<Point3<f64>>,
+}
+
+/// The planned state at `t`: position, velocity, acceleration.
+fn planned(traj: &Trajectory<3>, t: f64) -> Result<[Vector3<f64>; 3], FlightError> {
+    let t = t.clamp(0.0, traj.duration());
+    Ok([
+        Vector3::from(traj.position(t)?),
+        Vector3::from(traj.velocity(t)?),
+        Vector3::from(traj.acceleration(t)?),
+    ])
+}
+
+/// Flies `traj` through `world` with the sensors and the odometry; the flight lasts the
+/// trajectory's duration rounded up to whole 0.1 s frames.
+///
+/// # Errors
+/// Trajectory, kinematics or odometry errors.
+pub fn fly(
+    world: &World,
+    traj: &Trajectory<3>,
+    config: &FlightConfig,
+    seed: u64,
+) -> Result<FlightLog, FlightError> {
+    let chain = KinematicChain::default();
+    let sensor = LidarSensor::mid360();
+    let mut lidar = LidarSim::new(sensor, chain, config.lidar_noise, seed);
+    let mut imu = ImuSim::new(config.imu_noise, 200.0, seed.wrapping_add(1));
+    let motor = MotorModel::new(lidar_kinematics::MotorLimits::default());
+    let mut encoder = Encoder::new(config.encoder);
+    let omega = config.motor_speed_deg.to_radians();
+    let attitude = |t: f64| -> Result<UnitQuaternion<f64>, FlightError> {
+        Ok(flat_attitude(&planned(traj, t)?[2], 0.0))
+    };
+    let pose = |t: f64| -> Result<Isometry3<f64>, FlightError> {
+        Ok(Isometry3::from_parts(
+            Translation3::from(planned(traj, t)?[0]),
+            attitude(t)?,
+        ))
+    };
+    let [p0, v0, _] = planned(traj, 0.0)?;
+    let mut odo = Odometry::new(
+        chain,
+        config.odometry,
+        NavState {
+            time: 0.0,
+            position: p0,
+            velocity: v0,
+            attitude: attitude(0.0)?,
+        },
+    );
+    let mut log = FlightLog {
+        min_clearance: f64::INFINITY,
+        ..FlightLog::default()
+    };
+    let mut motor_state = MotorState::new(0.0, 0.0);
+    encoder.record(0.0, 0.0)?;
+    let mut motor_samples: Vec<(f64, f64)> = vec![(0.0, 0.0)];
+    let mut points = Vec::new();
+    let mut angles: Vec<AngleSample> = Vec::with_capacity(101);
+    let latency = config.encoder.latency();
+    let mut inside = false;
+    // Frame and tick counts are small; times are exact ratios so ticks and frame ends meet.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let frames = (traj.duration() * 10.0).ceil() as u64;
+    #[allow(clippy::cast_precision_loss)]
+    for k in 0..frames {
+        let t0 = k as f64 / 10.0;
+        let t1 = (k + 1) as f64 / 10.0;
+        // Motor and encoder at 1 kHz over the frame; each read reports the angle one latency
+        // earlier. The last read of the previous frame starts this frame's angles.
+        motor_samples.drain(..motor_samples.len() - 1);
+        angles.drain(..angles.len().saturating_sub(1));
+        for j in 1..=100u64 {
+            let t = (100 * k + j) as f64 / 1000.0;
+            motor_state = motor.step_speed(motor_state, omega, 1e-3)?;
+            encoder.record(t, motor_state.theta)?;
+            motor_samples.push((t, motor_state.theta));
+            if t - latency >= 0.0 {
+                let r = encoder.read(t)?;
+                angles.push(AngleSample::new(t - latency, r.angle));
+            }
+        }
+        let motor_angle = |t: f64| {
+            let i = motor_samples
+                .partition_point(|&(ti, _)| ti <= t)
+                .clamp(1, motor_samples.len() - 1);
+            let ((ta, a), (tb, b)) = (motor_samples[i - 1], motor_samples[i]);
+            a + (b - a) * (t - ta) / (tb - ta)
+        };
+        // IMU at 200 Hz.
+        for i in 0..20u64 {
+            let t = (20 * k + i) as f64 / 200.0;
+            let h = 1e-4;
+            let rate = body_rate(&attitude(t - h)?, &attitude(t + h)?, 2.0 * h);
+            let [p, _, a] = planned(traj, t)?;
+            let s = imu.sample(t, &attitude(t)?, &a, &rate);
+            odo.push_imu(&s)?;
+            let c = world.distance(&Point3::from(p));
+            log.min_clearance = log.min_clearance.min(c);
+            let now_inside = c < config.radius;
+            if now_inside && !inside {
+                log.collisions += 1;
+            }
+            inside = now_inside;
+        }
+        let body = |t: f64| pose(t).unwrap_or_else(|_| Isometry3::identity());
+        lidar.frame(world, k, t0, body, motor_angle, &mut points)?;
+        odo.process_frame(t1, &points, &angles)?;
+        log.times.push(t1);
+        log.truth.push(pose(t1)?);
+        log.estimate.push(odo.state().pose());
+    }
+    log.map = odo.map_points().copied().collect();
+    Ok(log)
+}
