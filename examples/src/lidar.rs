@@ -5,6 +5,8 @@
 use lidar_kinematics::{Beam, KinematicChain, KinematicsError, LidarSensor};
 use nalgebra::{Isometry3, Point3};
 
+use rayon::prelude::*;
+
 use crate::rng::Rng;
 use crate::world::World;
 
@@ -36,7 +38,7 @@ pub struct LidarSim {
     sensor: LidarSensor,
     chain: KinematicChain,
     noise: LidarNoise,
-    rng: Rng,
+    seed: u64,
     beams: Vec<Beam>,
 }
 
@@ -47,7 +49,7 @@ impl LidarSim {
             sensor,
             chain,
             noise,
-            rng: Rng::new(seed),
+            seed,
             beams: Vec::new(),
         }
     }
@@ -61,6 +63,10 @@ impl LidarSim {
     /// and motor angle at the beam's own time give the ray; a hit within the range limits
     /// returns the point in the LiDAR frame, with Gaussian range noise.
     ///
+    /// Beams are cast in parallel (rayon); each beam's noise comes from its own generator,
+    /// seeded by the simulator's seed, the frame index and the beam index, so a frame does not
+    /// depend on the number of threads.
+    ///
     /// # Errors
     /// Kinematic errors for a non-finite pose or angle.
     pub fn frame(
@@ -68,32 +74,55 @@ impl LidarSim {
         world: &World,
         index: u64,
         t0: f64,
-        body_pose: impl Fn(f64) -> Isometry3<f64>,
-        motor_angle: impl Fn(f64) -> f64,
+        body_pose: impl Fn(f64) -> Isometry3<f64> + Sync,
+        motor_angle: impl Fn(f64) -> f64 + Sync,
         out: &mut Vec<LidarPoint>,
     ) -> Result<(), KinematicsError> {
         out.clear();
         self.sensor.pattern().fill_frame(index, &mut self.beams);
         let range = *self.sensor.range();
-        for beam in &self.beams {
-            let t = t0 + beam.time_offset;
-            let pose = self.chain.lidar_pose(&body_pose(t), motor_angle(t))?;
-            let dir = pose.rotation * beam.direction.into_inner();
-            let origin = Point3::from(pose.translation.vector);
-            let Some(r) = world.cast_ray(&origin, &dir, range.max()) else {
-                continue;
-            };
-            let noisy = r + self.noise.range_std * self.rng.normal();
-            if !range.contains(noisy) {
-                continue;
-            }
-            out.push(LidarPoint {
-                time: t,
-                point: Point3::from(beam.direction.into_inner() * noisy),
-            });
-        }
+        let (chain, noise, seed) = (&self.chain, self.noise.range_std, self.seed);
+        let returns: Vec<Option<LidarPoint>> = self
+            .beams
+            .par_iter()
+            .with_min_len(BEAM_CHUNK)
+            .enumerate()
+            .map(|(i, beam)| {
+                let t = t0 + beam.time_offset;
+                let pose = chain.lidar_pose(&body_pose(t), motor_angle(t))?;
+                let dir = pose.rotation * beam.direction.into_inner();
+                let origin = Point3::from(pose.translation.vector);
+                let Some(r) = world.cast_ray(&origin, &dir, range.max()) else {
+                    return Ok(None);
+                };
+                let noisy = if noise > 0.0 {
+                    let mut rng = Rng::new(beam_seed(seed, index, i));
+                    r + noise * rng.normal()
+                } else {
+                    r
+                };
+                Ok(range.contains(noisy).then(|| LidarPoint {
+                    time: t,
+                    point: Point3::from(beam.direction.into_inner() * noisy),
+                }))
+            })
+            .collect::<Result<_, KinematicsError>>()?;
+        out.extend(returns.into_iter().flatten());
         Ok(())
     }
+}
+
+/// Beams per parallel task of [`LidarSim::frame`].
+const BEAM_CHUNK: usize = 1024;
+
+/// The seed of beam `beam` of frame `frame` (SplitMix64 finaliser of the three).
+fn beam_seed(seed: u64, frame: u64, beam: usize) -> u64 {
+    let mut z = seed
+        ^ frame.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (beam as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
 }
 
 #[cfg(test)]
@@ -136,6 +165,36 @@ mod tests {
         }
         // With the start pose instead, many points are off the surfaces: the motion distorts.
         assert!(distorted > pts.len() / 4, "{distorted}");
+    }
+
+    /// Beams run in parallel, each with its own noise: the same frame on 1 and 3 threads.
+    #[test]
+    fn frames_do_not_depend_on_the_thread_count() {
+        let scene = Scene::small(2);
+        let world = scene.world().unwrap();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut lidar = LidarSim::new(
+                    LidarSensor::mid360(),
+                    KinematicChain::default(),
+                    LidarNoise::default(),
+                    4,
+                );
+                let pose = |t: f64| Isometry3::translation(scene.start.x + t, scene.start.y, 1.5);
+                let mut pts = Vec::new();
+                lidar
+                    .frame(&world, 3, 0.3, pose, |t| 2.0 * t, &mut pts)
+                    .unwrap();
+                pts
+            })
+        };
+        let one = run(1);
+        assert!(one.len() > 15_000);
+        assert_eq!(one, run(3));
     }
 
     #[test]

@@ -12,10 +12,9 @@ use lidar_kinematics::{
     AngleSample, DeskewTarget, Deskewer, KinematicChain, KinematicsError, PoseSample, TimedPoint,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use rustc_hash::FxHashMap;
 
 use crate::lidar::LidarPoint;
-use crate::registration::{PlaneMap, Registration, RegistrationConfig};
+use crate::registration::{Registration, RegistrationConfig, VoxelCloud, register};
 use crate::uav::{GRAVITY, ImuSample};
 
 /// Times this close to the odometry's own count as equal \[s\] (rounding of sums of periods).
@@ -35,6 +34,8 @@ pub struct OdometryConfig {
     /// Share of the registration's position correction, per frame period, added to the
     /// velocity; default 0.5.
     pub velocity_gain: f64,
+    /// Points beyond `map_radius` are dropped every this many frames; default 10.
+    pub map_prune_frames: usize,
 }
 
 impl Default for OdometryConfig {
@@ -45,6 +46,7 @@ impl Default for OdometryConfig {
             map_radius: 40.0,
             scan_voxel: 0.3,
             velocity_gain: 0.5,
+            map_prune_frames: 10,
         }
     }
 }
@@ -107,8 +109,9 @@ pub struct Odometry {
     /// Propagated poses since the last frame end (the first one at that frame end).
     poses: Vec<PoseSample>,
     deskewer: Deskewer,
-    voxels: FxHashMap<[i64; 3], Point3<f64>>,
-    map: Option<PlaneMap>,
+    /// The local map: registered points, one per voxel; its neighbour search needs no tree.
+    map: VoxelCloud,
+    frames: usize,
     deskewed: Vec<Point3<f64>>,
     timed: Vec<TimedPoint>,
 }
@@ -122,8 +125,8 @@ impl Odometry {
             last_imu: None,
             poses: vec![PoseSample::new(initial.time, initial.pose())],
             deskewer: Deskewer::new(chain),
-            voxels: FxHashMap::default(),
-            map: None,
+            map: VoxelCloud::new(config.map_voxel),
+            frames: 0,
             deskewed: Vec::new(),
             timed: Vec::new(),
         }
@@ -136,12 +139,12 @@ impl Odometry {
 
     /// Points in the local map.
     pub fn map_len(&self) -> usize {
-        self.voxels.len()
+        self.map.len()
     }
 
     /// The local map's points (in no particular order).
     pub fn map_points(&self) -> impl Iterator<Item = &Point3<f64>> {
-        self.voxels.values()
+        self.map.points()
     }
 
     /// Propagates the state to `t` with the last IMU sample held constant.
@@ -230,9 +233,10 @@ impl Odometry {
             &mut self.deskewed,
         )?;
         let scan = thin(&self.deskewed, self.config.scan_voxel);
-        let registration = match &self.map {
-            Some(map) => {
-                let r = map.register(&scan, &predicted, &self.config.registration);
+        let registration = match self.frames {
+            0 => None,
+            _ => {
+                let r = register(&self.map, &scan, &predicted, &self.config.registration);
                 // Fusion: the registered pose replaces the prediction; part of the position
                 // correction per frame period goes into the velocity.
                 let period = (t_end - self.poses[0].time).max(1e-6);
@@ -242,34 +246,25 @@ impl Odometry {
                 self.state.attitude = r.pose.rotation;
                 Some(r)
             }
-            None => None,
         };
         let pose = self.state.pose();
-        let v = self.config.map_voxel;
         for p in &self.deskewed {
-            let w = pose * p;
-            if w.iter().all(|c| c.is_finite()) {
-                self.voxels.entry(voxel(&w, v)).or_insert(w);
-            }
+            self.map.insert(pose * p);
         }
-        let centre = Point3::from(self.state.position);
-        let r2 = self.config.map_radius * self.config.map_radius;
-        self.voxels
-            .retain(|_, p| (*p - centre).norm_squared() <= r2);
-        let mut pts: Vec<Point3<f64>> = self.voxels.values().copied().collect();
-        // Hash order depends on the insertion history only; sort so the tree does not either.
-        pts.sort_by(|a, b| {
-            a.x.total_cmp(&b.x)
-                .then(a.y.total_cmp(&b.y))
-                .then(a.z.total_cmp(&b.z))
-        });
-        self.map = Some(PlaneMap::new(&pts));
+        self.frames += 1;
+        if self
+            .frames
+            .is_multiple_of(self.config.map_prune_frames.max(1))
+        {
+            self.map
+                .retain_within(&Point3::from(self.state.position), self.config.map_radius);
+        }
         self.poses.clear();
         self.poses.push(PoseSample::new(t_end, pose));
         Ok(FrameReport {
             predicted,
             registration,
-            map_points: self.voxels.len(),
+            map_points: self.map.len(),
         })
     }
 }

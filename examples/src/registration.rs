@@ -11,6 +11,11 @@ use nalgebra::{
     Isometry3, Matrix3, Matrix6, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
     Vector6,
 };
+use rayon::prelude::*;
+use rustc_hash::FxHashMap;
+
+/// Scan points per parallel task of the plane fits.
+const PLANE_CHUNK: usize = 256;
 
 /// Settings of the registration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -28,6 +33,9 @@ pub struct RegistrationConfig {
     /// Stop when the update is smaller than this (rotation \[rad\] plus translation \[m\]);
     /// default 1e-6.
     pub tolerance: f64,
+    /// Re-fit the planes after an update that moves a point 10 m away by more than this \[m\]
+    /// (|v| + 10 |ω|); smaller updates keep the last planes. Default 0.01.
+    pub reassociate: f64,
 }
 
 impl Default for RegistrationConfig {
@@ -39,6 +47,7 @@ impl Default for RegistrationConfig {
             huber: 0.1,
             iterations: 10,
             tolerance: 1e-6,
+            reassociate: 0.01,
         }
     }
 }
@@ -93,114 +102,274 @@ impl PlaneMap {
         self.points.is_empty()
     }
 
-    /// The plane (unit normal n, a point on it) fitted to the neighbours of `q`, if they are
-    /// close enough and planar enough.
-    fn plane(
-        &self,
-        q: &Point3<f64>,
-        cfg: &RegistrationConfig,
-    ) -> Option<(Vector3<f64>, Point3<f64>)> {
-        let tree = self.tree.as_ref()?;
-        let k = NonZeroUsize::new(cfg.neighbours.min(self.points.len()))?;
-        let nn = tree
-            .query(&[q.x, q.y, q.z])
-            .nearest_n::<SquaredEuclidean<f64>>(k)
-            .execute();
-        if nn.len() < 3
-            || nn
-                .iter()
-                .any(|r| r.distance > cfg.max_neighbour_distance.powi(2))
-        {
-            return None;
-        }
-        let pts: Vec<Vector3<f64>> = nn
-            .iter()
-            .filter_map(|r| self.points.get(usize::try_from(r.item).ok()?))
-            .map(|p| Vector3::new(p[0], p[1], p[2]))
-            .collect();
-        #[allow(clippy::cast_precision_loss)]
-        let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
-        let cov = pts.iter().fold(Matrix3::zeros(), |m, p| {
-            m + (p - mean) * (p - mean).transpose()
-        });
-        let eig = SymmetricEigen::new(cov);
-        let mut idx = [0usize, 1, 2];
-        idx.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
-        let (l0, l1) = (eig.eigenvalues[idx[0]].max(0.0), eig.eigenvalues[idx[1]]);
-        if l1.is_nan() || l1 <= 0.0 || l0 > cfg.planarity * l1 {
-            return None;
-        }
-        Some((
-            eig.eigenvectors.column(idx[0]).into_owned(),
-            Point3::from(mean),
-        ))
-    }
-
-    /// Registers `scan` (points in the scan frame) to the map, starting from `initial`.
-    /// Non-finite scan points are skipped; with no matches the initial pose is returned
-    /// unchanged (`matched == 0`).
+    /// Registers `scan` (points in the scan frame) to the map, starting from `initial`: see
+    /// [`register`].
     pub fn register(
         &self,
         scan: &[Point3<f64>],
         initial: &Isometry3<f64>,
         cfg: &RegistrationConfig,
     ) -> Registration {
-        let mut pose = *initial;
-        let mut out = Registration {
-            pose,
-            matched: 0,
-            iterations: 0,
-            information: Vector6::zeros(),
-            weakest: Vector6::zeros(),
+        register(self, scan, initial, cfg)
+    }
+}
+
+/// A source of nearest map points for the plane fits.
+pub trait Neighbours: Sync {
+    /// The (at most) `k` map points nearest to `q`, as (squared distance, point), into `out`
+    /// (cleared first), in any order.
+    fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>);
+}
+
+impl Neighbours for PlaneMap {
+    fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>) {
+        out.clear();
+        let (Some(tree), Some(k)) = (
+            self.tree.as_ref(),
+            NonZeroUsize::new(k.min(self.points.len())),
+        ) else {
+            return;
         };
-        for it in 0..cfg.iterations {
-            let mut h = Matrix6::zeros();
-            let mut g = Vector6::zeros();
-            let mut matched = 0;
-            for p in scan.iter().filter(|p| p.iter().all(|v| v.is_finite())) {
-                let x = pose * p;
-                let Some((n, c)) = self.plane(&x, cfg) else {
-                    continue;
-                };
-                let r = n.dot(&(x - c));
-                // Left perturbation ξ = [ω; v]: ∂r/∂ξ = [(x × n)ᵀ, nᵀ].
-                let xn = x.coords.cross(&n);
-                let j = Vector6::new(xn.x, xn.y, xn.z, n.x, n.y, n.z);
-                let w = if r.abs() <= cfg.huber {
-                    1.0
-                } else {
-                    cfg.huber / r.abs()
-                };
-                h += w * j * j.transpose();
-                g += w * r * j;
-                matched += 1;
-            }
-            out.iterations = it + 1;
-            out.matched = matched;
-            let eig = SymmetricEigen::new(h);
-            let mut order = [0usize, 1, 2, 3, 4, 5];
-            order.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
-            out.information = Vector6::from_fn(|i, _| eig.eigenvalues[order[i]]);
-            out.weakest = eig.eigenvectors.column(order[0]).into_owned();
-            if matched < 6 {
-                break;
-            }
-            let Some(chol) = h.cholesky() else { break };
-            let dx = -chol.solve(&g);
-            let omega = Vector3::new(dx[0], dx[1], dx[2]);
-            let v = Vector3::new(dx[3], dx[4], dx[5]);
-            let delta = Isometry3::from_parts(
-                Translation3::from(v),
-                UnitQuaternion::from_scaled_axis(omega),
-            );
-            pose = delta * pose;
-            if omega.norm() + v.norm() < cfg.tolerance {
-                break;
+        let nn = tree
+            .query(&[q.x, q.y, q.z])
+            .nearest_n::<SquaredEuclidean<f64>>(k)
+            .execute();
+        out.extend(nn.iter().filter_map(|r| {
+            let p = self.points.get(usize::try_from(r.item).ok()?)?;
+            Some((r.distance, Point3::new(p[0], p[1], p[2])))
+        }));
+    }
+}
+
+/// A voxel-hashed cloud, one point per voxel (the first), whose neighbour search looks at the
+/// 27 voxels around the query's: approximate nearest neighbours in the manner of iVox
+/// (Faster-LIO), with no tree to rebuild when points are added.
+#[derive(Debug, Clone)]
+pub struct VoxelCloud {
+    size: f64,
+    cells: FxHashMap<[i64; 3], Point3<f64>>,
+}
+
+impl VoxelCloud {
+    /// An empty cloud with voxels of edge `size` \[m\].
+    pub fn new(size: f64) -> Self {
+        Self {
+            size,
+            cells: FxHashMap::default(),
+        }
+    }
+
+    fn key(&self, p: &Point3<f64>) -> [i64; 3] {
+        // Map coordinates are metres, far inside i64.
+        #[allow(clippy::cast_possible_truncation)]
+        p.coords.map(|c| (c / self.size).floor() as i64).into()
+    }
+
+    /// Adds `p` unless its voxel holds a point already (or it is not finite); whether it was
+    /// added.
+    pub fn insert(&mut self, p: Point3<f64>) -> bool {
+        if !p.iter().all(|c| c.is_finite()) {
+            return false;
+        }
+        let k = self.key(&p);
+        let mut added = false;
+        self.cells.entry(k).or_insert_with(|| {
+            added = true;
+            p
+        });
+        added
+    }
+
+    /// Drops the points farther than `radius` from `centre`.
+    pub fn retain_within(&mut self, centre: &Point3<f64>, radius: f64) {
+        let r2 = radius * radius;
+        self.cells.retain(|_, p| (*p - centre).norm_squared() <= r2);
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// Whether the cloud is empty.
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
+
+    /// The points, in no particular order.
+    pub fn points(&self) -> impl Iterator<Item = &Point3<f64>> {
+        self.cells.values()
+    }
+}
+
+impl Neighbours for VoxelCloud {
+    fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>) {
+        out.clear();
+        let c = self.key(q);
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    if let Some(p) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
+                        out.push(((p - q).norm_squared(), *p));
+                    }
+                }
             }
         }
-        out.pose = pose;
-        out
+        if out.len() > k {
+            out.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
+            out.truncate(k);
+        }
     }
+}
+
+/// The plane (unit normal n, a point on it) fitted to the neighbours of `q`, if they are
+/// close enough and planar enough.
+fn fit_plane(
+    map: &impl Neighbours,
+    q: &Point3<f64>,
+    cfg: &RegistrationConfig,
+    nn: &mut Vec<(f64, Point3<f64>)>,
+) -> Option<(Vector3<f64>, Point3<f64>)> {
+    map.nearest(q, cfg.neighbours, nn);
+    if nn.len() < 3 || nn.iter().any(|r| r.0 > cfg.max_neighbour_distance.powi(2)) {
+        return None;
+    }
+    // At most `neighbours` points: the count is exact.
+    #[allow(clippy::cast_precision_loss)]
+    let count = nn.len() as f64;
+    let mean = nn.iter().fold(Vector3::zeros(), |m, r| m + r.1.coords) / count;
+    let cov = nn.iter().fold(Matrix3::zeros(), |m, r| {
+        let d = r.1.coords - mean;
+        m + d * d.transpose()
+    });
+    let (l, n) = least_eigen(&cov)?;
+    if l[1].is_nan() || l[1] <= 0.0 || l[0].max(0.0) > cfg.planarity * l[1] {
+        return None;
+    }
+    Some((n, Point3::from(mean)))
+}
+
+/// Registers `scan` (points in the scan frame) to `map`, starting from `initial`:
+/// Gauss–Newton on SE(3) over point-to-plane residuals with a Huber kernel, the planes re-fitted
+/// (in parallel) while the updates are large. Non-finite scan points are skipped; with no
+/// matches the initial pose is returned unchanged (`matched == 0`).
+pub fn register(
+    map: &impl Neighbours,
+    scan: &[Point3<f64>],
+    initial: &Isometry3<f64>,
+    cfg: &RegistrationConfig,
+) -> Registration {
+    let mut pose = *initial;
+    let mut out = Registration {
+        pose,
+        matched: 0,
+        iterations: 0,
+        information: Vector6::zeros(),
+        weakest: Vector6::zeros(),
+    };
+    let scan: Vec<&Point3<f64>> = scan
+        .iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .collect();
+    let mut planes: Vec<Option<(Vector3<f64>, Point3<f64>)>> = vec![None; scan.len()];
+    let mut refit = true;
+    let mut h = Matrix6::zeros();
+    for it in 0..cfg.iterations {
+        h = Matrix6::zeros();
+        let mut g = Vector6::zeros();
+        let mut matched = 0;
+        if refit {
+            // The plane fits are independent: in parallel, each into its own slot.
+            planes
+                .par_iter_mut()
+                .with_min_len(PLANE_CHUNK)
+                .zip(scan.par_iter())
+                .for_each_init(Vec::new, |nn, (plane, p)| {
+                    *plane = fit_plane(map, &(pose * *p), cfg, nn);
+                });
+        }
+        for (p, plane) in scan.iter().zip(&planes) {
+            let x = pose * *p;
+            let Some((n, c)) = *plane else {
+                continue;
+            };
+            let r = n.dot(&(x - c));
+            // Left perturbation ξ = [ω; v]: ∂r/∂ξ = [(x × n)ᵀ, nᵀ].
+            let xn = x.coords.cross(&n);
+            let j = Vector6::new(xn.x, xn.y, xn.z, n.x, n.y, n.z);
+            let w = if r.abs() <= cfg.huber {
+                1.0
+            } else {
+                cfg.huber / r.abs()
+            };
+            h += w * j * j.transpose();
+            g += w * r * j;
+            matched += 1;
+        }
+        out.iterations = it + 1;
+        out.matched = matched;
+        if matched < 6 {
+            break;
+        }
+        let Some(chol) = h.cholesky() else { break };
+        let dx = -chol.solve(&g);
+        let omega = Vector3::new(dx[0], dx[1], dx[2]);
+        let v = Vector3::new(dx[3], dx[4], dx[5]);
+        let delta = Isometry3::from_parts(
+            Translation3::from(v),
+            UnitQuaternion::from_scaled_axis(omega),
+        );
+        pose = delta * pose;
+        if omega.norm() + v.norm() < cfg.tolerance {
+            break;
+        }
+        refit = v.norm() + 10.0 * omega.norm() > cfg.reassociate;
+    }
+    let eig = SymmetricEigen::new(h);
+    let mut order = [0usize, 1, 2, 3, 4, 5];
+    order.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
+    out.information = Vector6::from_fn(|i, _| eig.eigenvalues[order[i]]);
+    out.weakest = eig.eigenvectors.column(order[0]).into_owned();
+    out.pose = pose;
+    out
+}
+
+/// Eigenvalues (increasing) of a symmetric positive semi-definite 3 × 3 matrix and the unit
+/// eigenvector of the smallest, in closed form: the trigonometric solution of the
+/// characteristic cubic, and the largest cross product of two rows of A − λ₀I. `None` for a
+/// zero or non-finite matrix.
+fn least_eigen(a: &Matrix3<f64>) -> Option<([f64; 3], Vector3<f64>)> {
+    use core::f64::consts::TAU;
+    let scale = a.abs().max();
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
+    }
+    let m = a / scale;
+    let q = m.trace() / 3.0;
+    let p1 = m[(0, 1)].powi(2) + m[(0, 2)].powi(2) + m[(1, 2)].powi(2);
+    let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    if p < 1e-12 {
+        // A multiple of the identity: no plane.
+        return None;
+    }
+    let b = (m - Matrix3::identity() * q) / p;
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let hi = q + 2.0 * p * phi.cos();
+    let lo = q + 2.0 * p * (phi + TAU / 3.0).cos();
+    let mid = 3.0 * q - hi - lo;
+    let s = m - Matrix3::identity() * lo;
+    let (r0, r1, r2) = (
+        s.row(0).transpose(),
+        s.row(1).transpose(),
+        s.row(2).transpose(),
+    );
+    let best = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)]
+        .into_iter()
+        .max_by(|x, y| x.norm_squared().total_cmp(&y.norm_squared()))?;
+    let n = best.norm();
+    (n > 1e-300).then(|| ([lo * scale, mid * scale, hi * scale], best / n))
 }
 
 #[cfg(test)]
@@ -242,7 +411,11 @@ mod tests {
             let pose = Isometry3::translation(p.x, p.y, p.z);
             map_pts.extend(scan(&scene, &pose, 12_000).iter().map(|q| pose * q));
         }
-        let map = PlaneMap::new(&map_pts);
+        let tree = PlaneMap::new(&map_pts);
+        let mut voxels = VoxelCloud::new(0.1);
+        for p in &map_pts {
+            voxels.insert(*p);
+        }
         let s = scan(&scene, &truth, 3_000);
         let guess = Isometry3::from_parts(
             Translation3::new(0.15, -0.1, 0.05),
@@ -252,16 +425,71 @@ mod tests {
             iterations: 30,
             ..Default::default()
         };
-        let r = map.register(&s, &guess, &cfg);
-        let err_t = (r.pose.translation.vector - truth.translation.vector).norm();
-        let err_r = r.pose.rotation.angle_to(&truth.rotation);
-        assert!(
-            err_t < 2e-3 && err_r < 1e-3,
-            "{err_t} m, {err_r} rad, {} matched",
-            r.matched
-        );
-        assert!(r.matched > 1000);
-        assert!(r.information[0] > 0.0);
+        // The exact k-d tree neighbours and the voxel-hashed approximate ones.
+        for r in [
+            tree.register(&s, &guess, &cfg),
+            register(&voxels, &s, &guess, &cfg),
+        ] {
+            let err_t = (r.pose.translation.vector - truth.translation.vector).norm();
+            let err_r = r.pose.rotation.angle_to(&truth.rotation);
+            assert!(
+                err_t < 2e-3 && err_r < 1e-3,
+                "{err_t} m, {err_r} rad, {} matched",
+                r.matched
+            );
+            assert!(r.matched > 1000);
+            assert!(r.information[0] > 0.0);
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn closed_form_eigen_matches_nalgebra(
+            v in proptest::collection::vec(-3.0f64..3.0, 9),
+        ) {
+            // A positive semi-definite matrix BᵀB.
+            let b = Matrix3::from_iterator(v);
+            let a = b.transpose() * b;
+            let eig = SymmetricEigen::new(a);
+            let mut l: Vec<f64> = eig.eigenvalues.iter().copied().collect();
+            l.sort_by(f64::total_cmp);
+            let gap = (l[1] - l[0]) / l[2].max(1e-12);
+            proptest::prop_assume!(l[2] > 1e-6 && gap > 1e-3);
+            let (got, n) = least_eigen(&a).unwrap();
+            for k in 0..3 {
+                proptest::prop_assert!((got[k] - l[k]).abs() <= 1e-8 * l[2], "{:?} vs {:?}", got, l);
+            }
+            // A unit vector with A n = λ₀ n.
+            proptest::prop_assert!((n.norm() - 1.0).abs() < 1e-9);
+            proptest::prop_assert!((a * n - n * l[0]).norm() <= 1e-6 * l[2].max(1.0) / gap.min(1.0));
+        }
+
+        #[test]
+        fn voxel_neighbours_match_brute_force_within_a_voxel(
+            pts in proptest::collection::vec((-2.0f64..2.0, -2.0f64..2.0, -1.0f64..1.0), 1..200),
+            q in (-2.0f64..2.0, -2.0f64..2.0, -1.0f64..1.0),
+        ) {
+            let size = 0.5;
+            let mut cloud = VoxelCloud::new(size);
+            let mut kept = Vec::new();
+            for (x, y, z) in pts {
+                let p = Point3::new(x, y, z);
+                if cloud.insert(p) {
+                    kept.push(p);
+                }
+            }
+            let q = Point3::new(q.0, q.1, q.2);
+            let mut got = Vec::new();
+            cloud.nearest(&q, 5, &mut got);
+            let mut d: Vec<f64> = kept.iter().map(|p| (p - q).norm_squared()).collect();
+            d.sort_by(f64::total_cmp);
+            let mut g: Vec<f64> = got.iter().map(|r| r.0).collect();
+            g.sort_by(f64::total_cmp);
+            // Every point within one voxel edge of q lies in the 27 voxels searched, so the
+            // nearest ones within that distance are found exactly.
+            let within: Vec<f64> = d.iter().copied().filter(|&x| x <= size * size).take(5).collect();
+            proptest::prop_assert_eq!(&g[..within.len()], &within[..]);
+        }
     }
 
     #[test]

@@ -70,13 +70,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let raw = ape(&truth, &est, Alignment::None)?;
     let aligned = ape(&truth, &est, Alignment::Se3)?;
     let sim_time = log.times.last().copied().unwrap_or(0.0);
+    // Frame counts are small.
+    #[allow(clippy::cast_precision_loss)]
+    let per_frame_ms = |s: f64| 1e3 * s / log.times.len().max(1) as f64;
     let summary = format!(
         concat!(
             "{{\"scene\":\"{}\",\"seed\":{},\"trajectory_length_m\":{:.3},\"sim_time_s\":{:.3},",
             "\"wall_time_s\":{:.3},\"ape_rmse_m\":{:.4},\"ape_mean_m\":{:.4},\"ape_max_m\":{:.4},",
             "\"ape_unaligned_rmse_m\":{:.4},\"ape_unaligned_mean_m\":{:.4},",
             "\"ape_unaligned_max_m\":{:.4},\"min_clearance_m\":{:.3},\"collisions\":{},",
-            "\"frames\":{}}}"
+            "\"frames\":{},\"lidar_frame_ms_mean\":{:.3},\"odometry_update_ms_mean\":{:.3}}}"
         ),
         scene.name,
         seed,
@@ -92,6 +95,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         log.min_clearance,
         log.collisions,
         log.times.len(),
+        per_frame_ms(log.lidar_seconds),
+        per_frame_ms(log.odometry_seconds),
     );
     std::fs::write(out.join("summary.json"), format!("{summary}\n"))?;
     write_tum(
