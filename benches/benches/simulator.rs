@@ -1,18 +1,21 @@
 //! Benchmarks of the simulator (`fu-mpc-examples`).
 //!
-//! Target (the simulator issue): one simulated LiDAR frame of 20,000 rays ≤ 5 ms: the ray
+//! Targets (the simulator issue): one simulated LiDAR frame of 20,000 rays ≤ 5 ms (the ray
 //! casts alone, and a whole Mid-360 frame with per-point poses and range noise, in the
-//! Spatial Maze.
+//! Spatial Maze); one odometry update on such a frame ≤ 5 ms (deskew, registration against a
+//! local map built from 20 earlier frames, map update).
 //!
 //! Run with `cargo bench -p fu-mpc-benches --bench simulator`.
 #![allow(clippy::unwrap_used)]
 
 use std::hint::black_box;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use fu_mpc_examples::lidar::{LidarNoise, LidarSim};
+use fu_mpc_examples::odometry::{NavState, Odometry, OdometryConfig};
 use fu_mpc_examples::scene::Scene;
-use lidar_kinematics::{KinematicChain, LidarSensor};
+use fu_mpc_examples::uav::{ImuNoise, ImuSim};
+use lidar_kinematics::{AngleSample, KinematicChain, LidarSensor};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 fn bench_rays(c: &mut Criterion) {
@@ -72,5 +75,70 @@ fn bench_frame(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench_rays, bench_frame);
+/// One odometry update in the maze, after 20 frames of a straight flight at 2 m/s.
+fn bench_odometry(c: &mut Criterion) {
+    let scene = Scene::maze(1);
+    let world = scene.world().unwrap();
+    let chain = KinematicChain::default();
+    let mut lidar = LidarSim::new(LidarSensor::mid360(), chain, LidarNoise::default(), 1);
+    let start = scene.start;
+    let v = Vector3::new(2.0, 0.0, 0.0);
+    let pose = move |t: f64| {
+        Isometry3::from_parts(
+            Translation3::from(start.coords + v * t),
+            UnitQuaternion::identity(),
+        )
+    };
+    let omega = 100f64.to_radians();
+    let angle = move |t: f64| omega * t;
+    let mut imu = ImuSim::new(ImuNoise::default(), 200.0, 2);
+    let mut odo = Odometry::new(
+        chain,
+        OdometryConfig::default(),
+        NavState {
+            time: 0.0,
+            position: start.coords,
+            velocity: v,
+            attitude: UnitQuaternion::identity(),
+        },
+    );
+    let mut frame = |odo: &mut Odometry, k: u64| {
+        let mut pts = Vec::new();
+        for i in 0..20u64 {
+            let t = (20 * k + i) as f64 / 200.0;
+            let s = imu.sample(
+                t,
+                &UnitQuaternion::identity(),
+                &Vector3::zeros(),
+                &Vector3::zeros(),
+            );
+            odo.push_imu(&s).unwrap();
+        }
+        lidar
+            .frame(&world, k, k as f64 / 10.0, pose, angle, &mut pts)
+            .unwrap();
+        let angles: Vec<AngleSample> = (0..=100u64)
+            .map(|j| {
+                let t = (100 * k + j) as f64 / 1000.0;
+                AngleSample::new(t, angle(t))
+            })
+            .collect();
+        (pts, angles)
+    };
+    for k in 0..20u64 {
+        let (pts, angles) = frame(&mut odo, k);
+        odo.process_frame((k + 1) as f64 / 10.0, &pts, &angles)
+            .unwrap();
+    }
+    let (pts, angles) = frame(&mut odo, 20);
+    c.bench_function("odometry_update_mid360_20k_maze", |b| {
+        b.iter_batched(
+            || odo.clone(),
+            |mut o| black_box(o.process_frame(2.1, &pts, &angles).unwrap().map_points),
+            BatchSize::LargeInput,
+        );
+    });
+}
+
+criterion_group!(benches, bench_rays, bench_frame, bench_odometry);
 criterion_main!(benches);

@@ -101,7 +101,7 @@ pub enum OdometryError {
 }
 
 /// The LiDAR-inertial odometry.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Odometry {
     config: OdometryConfig,
     state: NavState,
