@@ -409,6 +409,8 @@ pub fn fly(
     let mut angles: Vec<AngleSample> = Vec::with_capacity(101);
     let mut body_samples: Vec<Isometry3<f64>> = Vec::with_capacity(101);
     let latency = config.encoder.latency();
+    // The first report: the angle at time 0, read one latency later.
+    angles.push(AngleSample::new(0.0, encoder.read(latency)?.angle));
     let mut inside = false;
     // Frame and tick counts are small; times are exact ratios so ticks and frame ends meet.
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
@@ -426,7 +428,7 @@ pub fn fly(
             motor_state = motor.step_speed(motor_state, omega, 1e-3)?;
             encoder.record(t, motor_state.theta)?;
             motor_samples.push((t, motor_state.theta));
-            if t - latency >= 0.0 {
+            if t - latency > 0.0 {
                 let r = encoder.read(t)?;
                 angles.push(AngleSample::new(t - latency, r.angle));
             }

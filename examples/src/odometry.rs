@@ -42,7 +42,7 @@ impl Default for OdometryConfig {
     fn default() -> Self {
         Self {
             registration: RegistrationConfig::default(),
-            map_voxel: 0.2,
+            map_voxel: 0.1,
             map_radius: 40.0,
             scan_voxel: 0.3,
             velocity_gain: 0.5,

@@ -311,7 +311,13 @@ pub fn register(
         if matched < 6 {
             break;
         }
-        let Some(chol) = h.cholesky() else { break };
+        // A little Levenberg damping keeps the step defined when the geometry leaves a
+        // direction unconstrained (a corridor's axis): that direction then stays at the
+        // prediction while the others are corrected.
+        let damping = 1e-9 * h.trace().max(f64::MIN_POSITIVE);
+        let Some(chol) = (h + Matrix6::identity() * damping).cholesky() else {
+            break;
+        };
         let dx = -chol.solve(&g);
         let omega = Vector3::new(dx[0], dx[1], dx[2]);
         let v = Vector3::new(dx[3], dx[4], dx[5]);

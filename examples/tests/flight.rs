@@ -38,3 +38,45 @@ fn a_flight_through_the_small_scene_is_tracked_and_repeatable() {
     let again = fly(&world, &traj, &config, 3).unwrap();
     assert_eq!(again.estimate, log.estimate);
 }
+
+/// With noiseless sensors (and an encoder without latency) the odometry reproduces the truth
+/// to a centimetre (RMSE; at most 2 cm at any frame) over 119 m of maze.
+#[test]
+fn noiseless_odometry_over_100_m_of_maze_is_within_a_centimetre() {
+    let scene = Scene::maze(1);
+    let world = scene.world().unwrap();
+    let config = FlightConfig {
+        reach: 50.0,
+        lidar_noise: fu_mpc_examples::lidar::LidarNoise { range_std: 0.0 },
+        imu_noise: fu_mpc_examples::uav::ImuNoise {
+            acc_noise: 0.0,
+            gyro_noise: 0.0,
+            acc_bias_walk: 0.0,
+            gyro_bias_walk: 0.0,
+        },
+        encoder: lidar_kinematics::EncoderConfig::try_new(1 << 16, 0.0).unwrap(),
+        ..FlightConfig::default()
+    };
+    let route = out_and_back_route(&scene, &world, &config).unwrap();
+    let traj = route_trajectory(&route, &config, 0.35).unwrap();
+    let log = fly(&world, &traj, &config, 1).unwrap();
+    let truth: Vec<Point3<f64>> = log
+        .truth
+        .iter()
+        .map(|p| p.translation.vector.into())
+        .collect();
+    let est: Vec<Point3<f64>> = log
+        .estimate
+        .iter()
+        .map(|p| p.translation.vector.into())
+        .collect();
+    let length = trajectory_length(&truth);
+    assert!(length > 100.0, "{length} m");
+    let stats = ape(&truth, &est, Alignment::None).unwrap();
+    assert!(
+        stats.rmse < 0.01 && stats.max < 0.02,
+        "RMSE {} m, largest error {} m over {length} m",
+        stats.rmse,
+        stats.max
+    );
+}

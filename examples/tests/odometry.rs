@@ -6,7 +6,23 @@ use fu_mpc_examples::odometry::{NavState, Odometry, OdometryConfig};
 use fu_mpc_examples::scene::Scene;
 use fu_mpc_examples::uav::{ImuNoise, ImuSim, body_rate, flat_attitude};
 use lidar_kinematics::{AngleSample, EncoderConfig, KinematicChain, LidarSensor};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+/// A flight path: position, velocity, acceleration and yaw over time.
+trait Path {
+    fn position(t: f64) -> Vector3<f64>;
+    fn velocity(t: f64) -> Vector3<f64>;
+    fn acceleration(t: f64) -> Vector3<f64>;
+    fn yaw(t: f64) -> f64;
+
+    fn attitude(t: f64) -> UnitQuaternion<f64> {
+        flat_attitude(&Self::acceleration(t), Self::yaw(t))
+    }
+
+    fn pose(t: f64) -> Isometry3<f64> {
+        Isometry3::from_parts(Translation3::from(Self::position(t)), Self::attitude(t))
+    }
+}
 
 /// A horizontal circle of radius 1.5 m at 1 m/s in the small scene's left room, yawing slowly.
 struct Circle;
@@ -15,7 +31,9 @@ impl Circle {
     const C: [f64; 3] = [3.0, 3.0, 1.5];
     const R: f64 = 1.5;
     const W: f64 = 1.0 / 1.5;
+}
 
+impl Path for Circle {
     fn position(t: f64) -> Vector3<f64> {
         let (s, c) = (Self::W * t).sin_cos();
         Vector3::new(
@@ -35,17 +53,34 @@ impl Circle {
         -Vector3::new(c, s, 0.0) * Self::R * Self::W * Self::W
     }
 
-    fn attitude(t: f64) -> UnitQuaternion<f64> {
-        flat_attitude(&Self::acceleration(t), 0.3 * t)
-    }
-
-    fn pose(t: f64) -> Isometry3<f64> {
-        Isometry3::from_parts(Translation3::from(Self::position(t)), Self::attitude(t))
+    fn yaw(t: f64) -> f64 {
+        0.3 * t
     }
 }
 
-/// Flies the circle for `seconds` with the motor at 100 deg/s; returns the largest position
-/// error of the odometry at the frame ends \[m\].
+/// Straight along the x axis at 1 m/s, 1.5 m up, in the middle of a corridor.
+struct Straight;
+
+impl Path for Straight {
+    fn position(t: f64) -> Vector3<f64> {
+        Vector3::new(85.0 + t, 1.5, 1.5)
+    }
+
+    fn velocity(_: f64) -> Vector3<f64> {
+        Vector3::x()
+    }
+
+    fn acceleration(_: f64) -> Vector3<f64> {
+        Vector3::zeros()
+    }
+
+    fn yaw(_: f64) -> f64 {
+        0.0
+    }
+}
+
+/// Flies the circle for `seconds`; returns the largest position error of the odometry at the
+/// frame ends \[m\].
 fn fly(seconds: f64, lidar_noise: LidarNoise, imu_noise: ImuNoise) -> f64 {
     fly_with(seconds, lidar_noise, imu_noise, OdometryConfig::default())
 }
@@ -57,6 +92,19 @@ fn fly_with(
     config: OdometryConfig,
 ) -> f64 {
     let scene = Scene::small(1);
+    let errors = fly_path::<Circle>(&scene, seconds, lidar_noise, imu_noise, config);
+    errors.iter().map(|e| e.norm()).fold(0.0, f64::max)
+}
+
+/// Flies path `P` through `scene` for `seconds` with the motor at 100 deg/s; returns the
+/// odometry's position error (estimate − truth) at every frame end \[m\].
+fn fly_path<P: Path>(
+    scene: &Scene,
+    seconds: f64,
+    lidar_noise: LidarNoise,
+    imu_noise: ImuNoise,
+    config: OdometryConfig,
+) -> Vec<Vector3<f64>> {
     let world = scene.world().unwrap();
     let chain = KinematicChain::default();
     let mut lidar = LidarSim::new(LidarSensor::mid360(), chain, lidar_noise, 7);
@@ -69,13 +117,13 @@ fn fly_with(
         config,
         NavState {
             time: 0.0,
-            position: Circle::position(0.0),
-            velocity: Circle::velocity(0.0),
-            attitude: Circle::attitude(0.0),
+            position: P::position(0.0),
+            velocity: P::velocity(0.0),
+            attitude: P::attitude(0.0),
         },
     );
     let mut points = Vec::new();
-    let mut worst: f64 = 0.0;
+    let mut errors = Vec::new();
     let frames = (seconds * 10.0).round() as u64;
     for k in 0..frames {
         // Times as exact ratios, so frame ends and IMU ticks coincide.
@@ -84,12 +132,12 @@ fn fly_with(
         for i in 0..20u64 {
             let t = (20 * k + i) as f64 / 200.0;
             let h = 1e-4;
-            let rate = body_rate(&Circle::attitude(t - h), &Circle::attitude(t + h), 2.0 * h);
-            let s = imu.sample(t, &Circle::attitude(t), &Circle::acceleration(t), &rate);
+            let rate = body_rate(&P::attitude(t - h), &P::attitude(t + h), 2.0 * h);
+            let s = imu.sample(t, &P::attitude(t), &P::acceleration(t), &rate);
             odo.push_imu(&s).unwrap();
         }
         lidar
-            .frame(&world, k, t0, Circle::pose, motor, &mut points)
+            .frame(&world, k, t0, P::pose, motor, &mut points)
             .unwrap();
         let angles: Vec<AngleSample> = (0..=100u64)
             .map(|i| {
@@ -99,10 +147,9 @@ fn fly_with(
             .collect();
         let t1 = (k + 1) as f64 / 10.0;
         odo.process_frame(t1, &points, &angles).unwrap();
-        let err = (odo.state().position - Circle::position(t1)).norm();
-        worst = worst.max(err);
+        errors.push(odo.state().position - P::position(t1));
     }
-    worst
+    errors
 }
 
 #[test]
@@ -132,4 +179,36 @@ fn registration_removes_the_imu_drift() {
         dead_reckoning > 0.1,
         "dead reckoning stayed within {dead_reckoning} m"
     );
+}
+
+#[test]
+fn a_featureless_corridor_lets_the_odometry_drift_along_its_axis() {
+    // A 200 m corridor, 3 m wide and high: its ends are beyond the LiDAR's range from the
+    // middle, so nothing constrains motion along x.
+    let corridor = Scene {
+        name: "corridor".into(),
+        min: Point3::new(0.0, 0.0, 0.0),
+        max: Point3::new(200.0, 3.0, 3.0),
+        start: Point3::new(85.0, 1.5, 1.5),
+        boxes: vec![
+            (Point3::new(-1.0, -1.0, -1.0), Point3::new(201.0, 4.0, 0.0)),
+            (Point3::new(-1.0, -1.0, 3.0), Point3::new(201.0, 4.0, 4.0)),
+            (Point3::new(-1.0, -1.0, 0.0), Point3::new(201.0, 0.0, 3.0)),
+            (Point3::new(-1.0, 3.0, 0.0), Point3::new(201.0, 4.0, 3.0)),
+            (Point3::new(-1.0, 0.0, 0.0), Point3::new(0.0, 3.0, 3.0)),
+            (Point3::new(200.0, 0.0, 0.0), Point3::new(201.0, 3.0, 3.0)),
+        ],
+    };
+    let errors = fly_path::<Straight>(
+        &corridor,
+        20.0,
+        LidarNoise::default(),
+        ImuNoise::default(),
+        OdometryConfig::default(),
+    );
+    let rms =
+        |k: usize| (errors.iter().map(|e| e[k] * e[k]).sum::<f64>() / errors.len() as f64).sqrt();
+    let (x, y, z) = (rms(0), rms(1), rms(2));
+    assert!(x > 3.0 * y.max(z), "RMS error x {x} m, y {y} m, z {z} m");
+    assert!(y < 0.05 && z < 0.05, "RMS error y {y} m, z {z} m");
 }
