@@ -4,9 +4,10 @@
 //! The route ([`out_and_back_route`]) goes from the scene's start to the reachable point
 //! farthest along x at the start's height and back, along a shortest path that keeps a
 //! clearance; [`route_trajectory`] turns it into a MINCO trajectory within speed and
-//! acceleration limits. [`fly`] runs the sensors and the odometry along it. The UAV follows
-//! the planned trajectory exactly (its yaw fixed at 0): tracking in the estimated frame is
-//! not simulated yet.
+//! acceleration limits. [`fly`] runs the sensors and the odometry along it. The UAV tracks
+//! the plan in the *estimated* frame (its yaw fixed at 0): after each odometry update the
+//! position controller shifts its target by plan − estimate, and the true position follows
+//! with a first-order lag, so the true path differs from the plan by the odometry's error.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -62,6 +63,9 @@ pub struct FlightConfig {
     pub motor_speed_deg: f64,
     /// Radius of the UAV \[m\]: a clearance below it is a collision; default 0.25.
     pub radius: f64,
+    /// Time constant of the position tracking \[s\]: the true position follows the plan
+    /// corrected by the odometry's error with this lag; default 0.5.
+    pub tracking_lag: f64,
     /// LiDAR noise.
     pub lidar_noise: LidarNoise,
     /// IMU noise.
@@ -83,6 +87,7 @@ impl Default for FlightConfig {
             a_max: 2.0,
             motor_speed_deg: 100.0,
             radius: 0.25,
+            tracking_lag: 0.5,
             lidar_noise: LidarNoise::default(),
             imu_noise: ImuNoise::default(),
             encoder: EncoderConfig::default(),
@@ -337,6 +342,8 @@ pub struct FlightLog {
     pub truth: Vec<Isometry3<f64>>,
     /// Odometry poses at the frame ends.
     pub estimate: Vec<Isometry3<f64>>,
+    /// Planned positions at the frame ends.
+    pub plan: Vec<Point3<f64>>,
     /// Least distance from the true position to the world, at the IMU rate \[m\].
     pub min_clearance: f64,
     /// Times the clearance fell below the UAV's radius.
@@ -348,6 +355,43 @@ pub struct FlightLog {
     pub lidar_seconds: f64,
     /// Wall time spent in the odometry's frame updates \[s\].
     pub odometry_seconds: f64,
+}
+
+/// The true motion: the plan shifted by an offset that follows the tracking controller's
+/// target with a first-order lag of time constant `tau`.
+///
+/// The controller tracks the plan in the *estimated* frame: after each odometry update it
+/// moves its target offset by plan − estimate, and the UAV's true position follows.
+#[derive(Debug, Clone, Copy)]
+struct Tracking {
+    t0: f64,
+    start: Vector3<f64>,
+    target: Vector3<f64>,
+    tau: f64,
+}
+
+impl Tracking {
+    /// Offset, its rate and its acceleration at `t` (≥ `t0`).
+    fn offset(&self, t: f64) -> [Vector3<f64>; 3] {
+        let e = (-(t - self.t0).max(0.0) / self.tau).exp();
+        let d = self.start - self.target;
+        [
+            self.target + d * e,
+            -d * e / self.tau,
+            d * e / (self.tau * self.tau),
+        ]
+    }
+}
+
+/// The true state at `t`: position, velocity, acceleration.
+fn actual(
+    traj: &Trajectory<3>,
+    track: &Tracking,
+    t: f64,
+) -> Result<[Vector3<f64>; 3], FlightError> {
+    let plan = planned(traj, t)?;
+    let off = track.offset(t);
+    Ok([plan[0] + off[0], plan[1] + off[1], plan[2] + off[2]])
 }
 
 /// The planned state at `t`: position, velocity, acceleration.
@@ -378,16 +422,22 @@ pub fn fly(
     let motor = MotorModel::new(lidar_kinematics::MotorLimits::default());
     let mut encoder = Encoder::new(config.encoder);
     let omega = config.motor_speed_deg.to_radians();
-    let attitude = |t: f64| -> Result<UnitQuaternion<f64>, FlightError> {
-        Ok(flat_attitude(&planned(traj, t)?[2], 0.0))
+    let mut track = Tracking {
+        t0: 0.0,
+        start: Vector3::zeros(),
+        target: Vector3::zeros(),
+        tau: config.tracking_lag,
     };
-    let pose = |t: f64| -> Result<Isometry3<f64>, FlightError> {
+    let attitude = |track: &Tracking, t: f64| -> Result<UnitQuaternion<f64>, FlightError> {
+        Ok(flat_attitude(&actual(traj, track, t)?[2], 0.0))
+    };
+    let pose = |track: &Tracking, t: f64| -> Result<Isometry3<f64>, FlightError> {
         Ok(Isometry3::from_parts(
-            Translation3::from(planned(traj, t)?[0]),
-            attitude(t)?,
+            Translation3::from(actual(traj, track, t)?[0]),
+            attitude(track, t)?,
         ))
     };
-    let [p0, v0, _] = planned(traj, 0.0)?;
+    let [p0, v0, _] = actual(traj, &track, 0.0)?;
     let mut odo = Odometry::new(
         chain,
         config.odometry,
@@ -395,7 +445,7 @@ pub fn fly(
             time: 0.0,
             position: p0,
             velocity: v0,
-            attitude: attitude(0.0)?,
+            attitude: attitude(&track, 0.0)?,
         },
     );
     let mut log = FlightLog {
@@ -444,9 +494,13 @@ pub fn fly(
         for i in 0..20u64 {
             let t = (20 * k + i) as f64 / 200.0;
             let h = 1e-4;
-            let rate = body_rate(&attitude(t - h)?, &attitude(t + h)?, 2.0 * h);
-            let [p, _, a] = planned(traj, t)?;
-            let s = imu.sample(t, &attitude(t)?, &a, &rate);
+            let rate = body_rate(
+                &attitude(&track, (t - h).max(track.t0))?,
+                &attitude(&track, t + h)?,
+                t + h - (t - h).max(track.t0),
+            );
+            let [p, _, a] = actual(traj, &track, t)?;
+            let s = imu.sample(t, &attitude(&track, t)?, &a, &rate);
             odo.push_imu(&s)?;
             let c = world.distance(&Point3::from(p));
             log.min_clearance = log.min_clearance.min(c);
@@ -460,7 +514,7 @@ pub fn fly(
         // (the trajectory is smooth: the interpolation error is far below a micrometre).
         body_samples.clear();
         for j in 0..=100u64 {
-            body_samples.push(pose((100 * k + j) as f64 / 1000.0)?);
+            body_samples.push(pose(&track, (100 * k + j) as f64 / 1000.0)?);
         }
         let body = |t: f64| {
             let s = ((t - t0) * 1000.0).clamp(0.0, 100.0);
@@ -480,10 +534,47 @@ pub fn fly(
         let clock = Instant::now();
         odo.process_frame(t1, &points, &angles)?;
         log.odometry_seconds += clock.elapsed().as_secs_f64();
+        let truth = pose(&track, t1)?;
         log.times.push(t1);
-        log.truth.push(pose(t1)?);
+        log.truth.push(truth);
         log.estimate.push(odo.state().pose());
+        // The controller moves its target by plan − estimate; the true offset follows.
+        let plan = planned(traj, t1)?[0];
+        log.plan.push(Point3::from(plan));
+        let now = track.offset(t1)[0];
+        track = Tracking {
+            t0: t1,
+            start: now,
+            target: now + (plan - odo.state().position),
+            tau: config.tracking_lag,
+        };
     }
     log.map = odo.map_points().copied().collect();
     Ok(log)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_tracking_offset_moves_from_its_start_to_its_target() {
+        let track = Tracking {
+            t0: 2.0,
+            start: Vector3::new(0.1, -0.2, 0.0),
+            target: Vector3::new(-0.1, 0.0, 0.05),
+            tau: 0.5,
+        };
+        let [p, v, _] = track.offset(2.0);
+        assert!((p - track.start).norm() < 1e-15);
+        assert!((v - (track.target - track.start) / 0.5).norm() < 1e-12);
+        assert!((track.offset(20.0)[0] - track.target).norm() < 1e-12);
+        // Rate and acceleration match central differences.
+        let (t, h) = (2.3, 1e-5);
+        let [_, v, a] = track.offset(t);
+        let dp = (track.offset(t + h)[0] - track.offset(t - h)[0]) / (2.0 * h);
+        let dv = (track.offset(t + h)[1] - track.offset(t - h)[1]) / (2.0 * h);
+        assert!((dp - v).norm() < 1e-8, "{dp} vs {v}");
+        assert!((dv - a).norm() < 1e-6, "{dv} vs {a}");
+    }
 }

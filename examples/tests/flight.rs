@@ -34,6 +34,17 @@ fn a_flight_through_the_small_scene_is_tracked_and_repeatable() {
     let stats = ape(&truth, &est, Alignment::None).unwrap();
     assert!(stats.rmse < 0.05, "APE RMSE {} m", stats.rmse);
     assert!(!log.map.is_empty());
+    // The UAV tracks the plan in the estimated frame: the true path leaves the plan by about
+    // the odometry's error, no more.
+    let true_off = truth
+        .iter()
+        .zip(&log.plan)
+        .map(|(x, y)| (x - y).norm())
+        .fold(0.0, f64::max);
+    assert!(
+        true_off > 0.0 && true_off < 0.05,
+        "{true_off} m off the plan"
+    );
     // The same seed gives the same flight.
     let again = fly(&world, &traj, &config, 3).unwrap();
     assert_eq!(again.estimate, log.estimate);
