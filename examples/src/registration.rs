@@ -144,10 +144,29 @@ impl Neighbours for PlaneMap {
 /// A voxel-hashed cloud, one point per voxel (the first), whose neighbour search looks at the
 /// 27 voxels around the query's: approximate nearest neighbours in the manner of iVox
 /// (Faster-LIO), with no tree to rebuild when points are added.
+///
+/// Voxels are stored in hashed blocks of 4 × 4 × 4, so the 27 voxels of a search touch a few
+/// blocks rather than 27 hash entries.
 #[derive(Debug, Clone)]
 pub struct VoxelCloud {
     size: f64,
-    cells: FxHashMap<[i64; 3], Point3<f64>>,
+    blocks: FxHashMap<[i64; 3], Box<VoxelBlock>>,
+    len: usize,
+}
+
+/// 4 × 4 × 4 voxels: a point per used voxel.
+#[derive(Debug, Clone)]
+struct VoxelBlock {
+    used: u64,
+    points: [Point3<f64>; 64],
+}
+
+/// The block of a voxel and the voxel's slot in it.
+fn block_slot(v: [i64; 3]) -> ([i64; 3], usize) {
+    // v & 3 is in 0..4, so the casts are exact.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let slot = ((v[0] & 3) | ((v[1] & 3) << 2) | ((v[2] & 3) << 4)) as usize;
+    ([v[0] >> 2, v[1] >> 2, v[2] >> 2], slot)
 }
 
 impl VoxelCloud {
@@ -155,7 +174,8 @@ impl VoxelCloud {
     pub fn new(size: f64) -> Self {
         Self {
             size,
-            cells: FxHashMap::default(),
+            blocks: FxHashMap::default(),
+            len: 0,
         }
     }
 
@@ -171,34 +191,57 @@ impl VoxelCloud {
         if !p.iter().all(|c| c.is_finite()) {
             return false;
         }
-        let k = self.key(&p);
-        let mut added = false;
-        self.cells.entry(k).or_insert_with(|| {
-            added = true;
-            p
+        let (b, slot) = block_slot(self.key(&p));
+        let block = self.blocks.entry(b).or_insert_with(|| {
+            Box::new(VoxelBlock {
+                used: 0,
+                points: [Point3::origin(); 64],
+            })
         });
-        added
+        if block.used & (1 << slot) != 0 {
+            return false;
+        }
+        block.used |= 1 << slot;
+        block.points[slot] = p;
+        self.len += 1;
+        true
     }
 
     /// Drops the points farther than `radius` from `centre`.
     pub fn retain_within(&mut self, centre: &Point3<f64>, radius: f64) {
         let r2 = radius * radius;
-        self.cells.retain(|_, p| (*p - centre).norm_squared() <= r2);
+        let mut len = 0;
+        self.blocks.retain(|_, block| {
+            for slot in 0..64 {
+                if block.used & (1 << slot) != 0
+                    && (block.points[slot] - centre).norm_squared() > r2
+                {
+                    block.used &= !(1 << slot);
+                }
+            }
+            len += block.used.count_ones() as usize;
+            block.used != 0
+        });
+        self.len = len;
     }
 
     /// Number of points.
     pub fn len(&self) -> usize {
-        self.cells.len()
+        self.len
     }
 
     /// Whether the cloud is empty.
     pub fn is_empty(&self) -> bool {
-        self.cells.is_empty()
+        self.len == 0
     }
 
     /// The points, in no particular order.
     pub fn points(&self) -> impl Iterator<Item = &Point3<f64>> {
-        self.cells.values()
+        self.blocks.values().flat_map(|b| {
+            (0..64)
+                .filter(move |s| b.used & (1 << s) != 0)
+                .map(move |s| &b.points[s])
+        })
     }
 }
 
@@ -206,11 +249,25 @@ impl Neighbours for VoxelCloud {
     fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>) {
         out.clear();
         let c = self.key(q);
+        // The last block looked up: neighbouring voxels mostly share it.
+        let mut cached: Option<([i64; 3], Option<&VoxelBlock>)> = None;
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    if let Some(p) = self.cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
-                        out.push(((p - q).norm_squared(), *p));
+                    let (b, slot) = block_slot([c[0] + dx, c[1] + dy, c[2] + dz]);
+                    let block = match cached {
+                        Some((key, block)) if key == b => block,
+                        _ => {
+                            let block = self.blocks.get(&b).map(|x| &**x);
+                            cached = Some((b, block));
+                            block
+                        }
+                    };
+                    if let Some(block) = block
+                        && block.used & (1 << slot) != 0
+                    {
+                        let p = block.points[slot];
+                        out.push(((p - q).norm_squared(), p));
                     }
                 }
             }
