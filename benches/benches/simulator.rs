@@ -6,7 +6,7 @@
 //! local map built from 20 earlier frames, map update).
 //!
 //! Run with `cargo bench -p fu-mpc-benches --bench simulator`.
-#![allow(clippy::unwrap_used)]
+#![allow(clippy::unwrap_used, clippy::print_stderr)]
 
 use std::hint::black_box;
 
@@ -15,8 +15,9 @@ use fu_mpc_examples::lidar::{LidarNoise, LidarSim};
 use fu_mpc_examples::odometry::{NavState, Odometry, OdometryConfig};
 use fu_mpc_examples::scene::Scene;
 use fu_mpc_examples::uav::{ImuNoise, ImuSim};
+use fu_mpc_examples::world::World;
 use lidar_kinematics::{AngleSample, KinematicChain, LidarSensor};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 fn bench_rays(c: &mut Criterion) {
     let scene = Scene::maze(1);
@@ -71,6 +72,72 @@ fn bench_frame(c: &mut Criterion) {
                 .frame(&world, index, 0.0, pose, angle, &mut out)
                 .unwrap();
             black_box(out.len())
+        });
+    });
+}
+
+/// 20,000 ray casts in the shared `apartment.pcd` scene as a voxel world (0.1 m voxels), from
+/// the clearest of a few points near its middle: the world's DDA grid against parry3d's voxel
+/// shape. Skipped with a message when `../shared/data/scenes` is absent.
+fn bench_voxel_rays(c: &mut Criterion) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data/scenes/apartment.pcd");
+    let Ok(cloud) = fu_mpc_examples::cloud_io::load_pcd(&path) else {
+        eprintln!(
+            "skipping the voxel-world bench: {} not found",
+            path.display()
+        );
+        return;
+    };
+    let world = World::from_points(&cloud, 0.1).unwrap();
+    let lo = cloud
+        .iter()
+        .fold(Point3::from(Vector3::repeat(f64::INFINITY)), |m, p| {
+            m.inf(p)
+        });
+    let hi = cloud
+        .iter()
+        .fold(Point3::from(Vector3::repeat(f64::NEG_INFINITY)), |m, p| {
+            m.sup(p)
+        });
+    let mid = nalgebra::center(&lo, &hi);
+    let origin = (0..64)
+        .map(|i| {
+            let f = f64::from(i);
+            mid + Vector3::new((f * 0.7).sin() * 4.0, (f * 1.3).cos() * 3.0, 0.0)
+        })
+        .max_by(|a, b| world.distance(a).total_cmp(&world.distance(b)))
+        .unwrap();
+    let n = 20_000u32;
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let dirs: Vec<Vector3<f64>> = (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (f64::from(i) + 0.5) / f64::from(n);
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * f64::from(i);
+            Vector3::new(r * a.cos(), r * a.sin(), z)
+        })
+        .collect();
+    c.bench_function("world_20k_ray_casts_apartment_voxels_dda", |b| {
+        b.iter(|| {
+            let mut hits = 0usize;
+            for d in &dirs {
+                if world.cast_ray(black_box(&origin), d, 40.0).is_some() {
+                    hits += 1;
+                }
+            }
+            black_box(hits)
+        });
+    });
+    c.bench_function("world_20k_ray_casts_apartment_voxels_parry", |b| {
+        b.iter(|| {
+            let mut hits = 0usize;
+            for d in &dirs {
+                if world.cast_ray_parry(black_box(&origin), d, 40.0).is_some() {
+                    hits += 1;
+                }
+            }
+            black_box(hits)
         });
     });
 }
@@ -140,5 +207,11 @@ fn bench_odometry(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench_rays, bench_frame, bench_odometry);
+criterion_group!(
+    benches,
+    bench_rays,
+    bench_voxel_rays,
+    bench_frame,
+    bench_odometry
+);
 criterion_main!(benches);
