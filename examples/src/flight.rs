@@ -46,7 +46,8 @@ pub enum FlightError {
 /// Settings of a flight.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FlightConfig {
-    /// Height of the route \[m\] above the scene's lower bound; default 1.5.
+    /// For point-cloud scenes, the preferred height of the start above the cloud's lowest
+    /// point \[m\] (see [`Area::of_cloud`]); default 1.5. Routes fly at the start's height.
     pub height: f64,
     /// Least clearance of the route's grid cells and shortcuts \[m\]; default 0.75.
     pub clearance: f64,
@@ -66,6 +67,8 @@ pub struct FlightConfig {
     /// Time constant of the position tracking \[s\]: the true position follows the plan
     /// corrected by the odometry's error with this lag; default 0.5.
     pub tracking_lag: f64,
+    /// Largest shift of the tracking target per odometry update \[m\]; default 0.2.
+    pub max_correction: f64,
     /// LiDAR noise.
     pub lidar_noise: LidarNoise,
     /// IMU noise.
@@ -88,11 +91,69 @@ impl Default for FlightConfig {
             motor_speed_deg: 100.0,
             radius: 0.25,
             tracking_lag: 0.5,
+            max_correction: 0.2,
             lidar_noise: LidarNoise::default(),
             imu_noise: ImuNoise::default(),
             encoder: EncoderConfig::default(),
             odometry: OdometryConfig::default(),
         }
+    }
+}
+
+/// Where a route may go: the region's bounds and the start \[m\].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Area {
+    /// Lower corner.
+    pub min: Point3<f64>,
+    /// Upper corner.
+    pub max: Point3<f64>,
+    /// The start; routes fly at its height.
+    pub start: Point3<f64>,
+}
+
+impl From<&Scene> for Area {
+    fn from(s: &Scene) -> Self {
+        Self {
+            min: s.min,
+            max: s.max,
+            start: s.start,
+        }
+    }
+}
+
+impl Area {
+    /// The area of a point-cloud scene: the cloud's bounding box, and as the start the point
+    /// of a 0.5 m grid with the most clearance (counted up to 2 m), preferring heights near
+    /// `height` above the cloud's lowest point and then the centre among equals. `None` for a
+    /// cloud without finite points.
+    pub fn of_cloud(cloud: &[Point3<f64>], world: &World, height: f64) -> Option<Self> {
+        let finite = cloud.iter().filter(|p| p.iter().all(|v| v.is_finite()));
+        let (min, max) = finite.fold(None, |acc: Option<(Point3<f64>, Point3<f64>)>, p| {
+            Some(acc.map_or((*p, *p), |(lo, hi)| (lo.inf(p), hi.sup(p))))
+        })?;
+        let centre = nalgebra::center(&min, &max);
+        let want = min.z + height;
+        let mut best: Option<(f64, f64, Point3<f64>)> = None;
+        let mut z = min.z + 0.5;
+        while z < max.z {
+            let mut y = min.y + 0.25;
+            while y < max.y {
+                let mut x = min.x + 0.25;
+                while x < max.x {
+                    let p = Point3::new(x, y, z);
+                    let clear = world.distance(&p).min(2.0);
+                    let off = (z - want).abs() * 10.0 + (p - centre).norm();
+                    if best.is_none_or(|(c, o, _)| clear > c || (clear == c && off < o)) {
+                        best = Some((clear, off, p));
+                    }
+                    x += 0.5;
+                }
+                y += 0.5;
+            }
+            z += 0.5;
+        }
+        let (_, _, start) = best?;
+        Some(Self { min, max, start })
     }
 }
 
@@ -106,15 +167,15 @@ struct Grid {
 }
 
 impl Grid {
-    fn new(scene: &Scene, world: &World, z: f64, cell: f64) -> Self {
-        let ext = scene.max - scene.min;
+    fn new(area: &Area, world: &World, z: f64, cell: f64) -> Self {
+        let ext = area.max - area.min;
         // Scene extents over grid cells of centimetres and more: small counts.
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let (nx, ny) = (
             (ext.x / cell).floor().max(1.0) as usize,
             (ext.y / cell).floor().max(1.0) as usize,
         );
-        let origin = Point3::new(scene.min.x, scene.min.y, z);
+        let origin = Point3::new(area.min.x, area.min.y, z);
         let mut g = Self {
             origin,
             cell,
@@ -229,20 +290,20 @@ fn segment_clear(world: &World, a: &Point3<f64>, b: &Point3<f64>, min: f64) -> b
     })
 }
 
-/// The route from the scene's start to the reachable point farthest along x (at most
-/// `config.reach` beyond the start) at the start's height and back: a shortest grid path with clearance ≥ `config.clearance`, shortened
+/// The route from the area's start to the reachable point farthest along x (at most
+/// `config.reach` beyond the start), at the start's height, and back: a shortest grid path with clearance ≥ `config.clearance`, shortened
 /// greedily while straight segments keep that clearance. Waypoints include both ends.
 ///
 /// # Errors
 /// [`FlightError::NoRoute`] when the start has too little clearance or nothing is reachable.
 pub fn out_and_back_route(
-    scene: &Scene,
+    area: &Area,
     world: &World,
     config: &FlightConfig,
 ) -> Result<Vec<Point3<f64>>, FlightError> {
-    let z = scene.min.z + config.height;
-    let grid = Grid::new(scene, world, z, config.grid);
-    let start = Point3::new(scene.start.x, scene.start.y, z);
+    let z = area.start.z;
+    let grid = Grid::new(area, world, z, config.grid);
+    let start = area.start;
     let (sx, sy) = grid
         .cell_of(&start)
         .ok_or(FlightError::NoRoute("start outside the scene"))?;
@@ -542,10 +603,14 @@ pub fn fly(
         let plan = planned(traj, t1)?[0];
         log.plan.push(Point3::from(plan));
         let now = track.offset(t1)[0];
+        // A real position controller moves a bounded distance per update: the shift is capped
+        // at `max_correction`, so a lost odometry cannot fling the UAV away.
+        let shift = plan - odo.state().position;
+        let shift = shift * (config.max_correction / shift.norm().max(config.max_correction));
         track = Tracking {
             t0: t1,
             start: now,
-            target: now + (plan - odo.state().position),
+            target: now + shift,
             tau: config.tracking_lag,
         };
     }
@@ -556,6 +621,36 @@ pub fn fly(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cloud_area_starts_at_its_clearest_point() {
+        // The walls, floor and ceiling of a 6 × 4 × 3 m room, sampled every 0.1 m.
+        let mut cloud = Vec::new();
+        for i in 0..=60 {
+            for j in 0..=40 {
+                let (x, y) = (f64::from(i) * 0.1, f64::from(j) * 0.1);
+                cloud.push(Point3::new(x, y, 0.0));
+                cloud.push(Point3::new(x, y, 3.0));
+            }
+            for k in 0..=30 {
+                let (x, z) = (f64::from(i) * 0.1, f64::from(k) * 0.1);
+                cloud.push(Point3::new(x, 0.0, z));
+                cloud.push(Point3::new(x, 4.0, z));
+            }
+        }
+        for j in 0..=40 {
+            for k in 0..=30 {
+                let (y, z) = (f64::from(j) * 0.1, f64::from(k) * 0.1);
+                cloud.push(Point3::new(0.0, y, z));
+                cloud.push(Point3::new(6.0, y, z));
+            }
+        }
+        let world = World::from_points(&cloud, 0.1).unwrap();
+        let area = Area::of_cloud(&cloud, &world, 1.5).unwrap();
+        assert!(world.distance(&area.start) >= 1.3, "{}", area.start);
+        assert!((0..3).all(|k| area.start[k] > area.min[k] && area.start[k] < area.max[k]));
+        assert!(Area::of_cloud(&[Point3::new(f64::NAN, 0.0, 0.0)], &world, 1.5).is_none());
+    }
 
     #[test]
     fn the_tracking_offset_moves_from_its_start_to_its_target() {

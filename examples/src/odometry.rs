@@ -36,6 +36,9 @@ pub struct OdometryConfig {
     pub velocity_gain: f64,
     /// Points beyond `map_radius` are dropped every this many frames; default 10.
     pub map_prune_frames: usize,
+    /// A registration with fewer matched points, or a rejected step, keeps the IMU's
+    /// prediction; default 50.
+    pub min_matches: usize,
 }
 
 impl Default for OdometryConfig {
@@ -47,6 +50,7 @@ impl Default for OdometryConfig {
             scan_voxel: 0.3,
             velocity_gain: 0.5,
             map_prune_frames: 10,
+            min_matches: 50,
         }
     }
 }
@@ -236,7 +240,11 @@ impl Odometry {
         let registration = match self.frames {
             0 => None,
             _ => {
-                let r = register(&self.map, &scan, &predicted, &self.config.registration);
+                let mut r = register(&self.map, &scan, &predicted, &self.config.registration);
+                if r.rejected || r.matched < self.config.min_matches {
+                    // Too little geometry to trust: keep the IMU's prediction.
+                    r.pose = predicted;
+                }
                 // Fusion: the registered pose replaces the prediction; part of the position
                 // correction per frame period goes into the velocity.
                 let period = (t_end - self.poses[0].time).max(1e-6);

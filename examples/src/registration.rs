@@ -33,6 +33,9 @@ pub struct RegistrationConfig {
     /// Stop when the update is smaller than this (rotation \[rad\] plus translation \[m\]);
     /// default 1e-6.
     pub tolerance: f64,
+    /// Largest Gauss–Newton step \[m\] and \[rad\]: a larger one stops the registration at
+    /// the last pose and marks it rejected; default 0.5.
+    pub max_step: f64,
     /// Re-fit the planes after an update that moves a point 10 m away by more than this \[m\]
     /// (|v| + 10 |ω|); smaller updates keep the last planes. Default 0.01.
     pub reassociate: f64,
@@ -48,6 +51,7 @@ impl Default for RegistrationConfig {
             iterations: 10,
             tolerance: 1e-6,
             reassociate: 0.01,
+            max_step: 0.5,
         }
     }
 }
@@ -67,6 +71,9 @@ pub struct Registration {
     /// The unit direction ξ = [ω; v] of the smallest eigenvalue: the motion the scan
     /// constrains least.
     pub weakest: Vector6<f64>,
+    /// Whether a step was larger than [`RegistrationConfig::max_step`] (the pose is then the
+    /// last one before it).
+    pub rejected: bool,
 }
 
 /// A map of world points for registration.
@@ -323,6 +330,7 @@ pub fn register(
         iterations: 0,
         information: Vector6::zeros(),
         weakest: Vector6::zeros(),
+        rejected: false,
     };
     let scan: Vec<&Point3<f64>> = scan
         .iter()
@@ -378,6 +386,11 @@ pub fn register(
         let dx = -chol.solve(&g);
         let omega = Vector3::new(dx[0], dx[1], dx[2]);
         let v = Vector3::new(dx[3], dx[4], dx[5]);
+        if v.norm() > cfg.max_step || omega.norm() > cfg.max_step {
+            // A step this large comes from geometry too poor to trust: keep the pose.
+            out.rejected = true;
+            break;
+        }
         let delta = Isometry3::from_parts(
             Translation3::from(v),
             UnitQuaternion::from_scaled_axis(omega),

@@ -11,7 +11,7 @@ fn a_flight_through_the_small_scene_is_tracked_and_repeatable() {
     let scene = Scene::small(1);
     let world = scene.world().unwrap();
     let config = FlightConfig::default();
-    let route = out_and_back_route(&scene, &world, &config).unwrap();
+    let route = out_and_back_route(&(&scene).into(), &world, &config).unwrap();
     assert!(route.len() >= 3);
     assert_eq!(route.first(), route.last());
     let traj = route_trajectory(&route, &config, 0.35).unwrap();
@@ -68,7 +68,7 @@ fn noiseless_odometry_over_100_m_of_maze_is_within_a_centimetre() {
         encoder: lidar_kinematics::EncoderConfig::try_new(1 << 16, 0.0).unwrap(),
         ..FlightConfig::default()
     };
-    let route = out_and_back_route(&scene, &world, &config).unwrap();
+    let route = out_and_back_route(&(&scene).into(), &world, &config).unwrap();
     let traj = route_trajectory(&route, &config, 0.35).unwrap();
     let log = fly(&world, &traj, &config, 1).unwrap();
     let truth: Vec<Point3<f64>> = log

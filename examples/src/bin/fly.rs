@@ -1,7 +1,9 @@
 //! Flies a fixed route through a scene with the LiDAR, IMU, encoder and odometry running, and
 //! measures the odometry against the ground truth.
 //!
-//! Run with `cargo run --release -p fu-mpc-examples --bin fly -- --scene maze --seed N --out DIR`.
+//! Run with `cargo run --release -p fu-mpc-examples --bin fly -- --scene maze --seed N --out DIR`;
+//! `--scene` also takes a PCD or PLY point cloud, flown as occupied 0.1 m voxels from the
+//! clearest point 1.5 m above its lowest point.
 //! The route goes from the scene's start to the reachable point farthest along x (at most
 //! 80 m on) at 1.5 m and back (about 200 m in the maze), at up to 2 m/s, with the motor at 100 deg/s (see
 //! `fu_mpc_examples::flight`). Writes `DIR/summary.json`, the trajectories `DIR/gt.tum` and
@@ -14,12 +16,15 @@ use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::time::Instant;
 
-use fu_mpc_examples::flight::{FlightConfig, fly, out_and_back_route, route_trajectory};
+use fu_mpc_examples::cloud_io::{load_pcd, load_ply};
+use fu_mpc_examples::flight::{Area, FlightConfig, fly, out_and_back_route, route_trajectory};
 use fu_mpc_examples::metrics::{Alignment, ape, trajectory_length, write_tum};
 use fu_mpc_examples::scene::Scene;
+use fu_mpc_examples::world::World;
 use nalgebra::Point3;
 
-const USAGE: &str = "usage: fly [--scene maze|sinkhole|lavatube|small] [--seed N] [--out DIR]";
+const USAGE: &str =
+    "usage: fly [--scene maze|sinkhole|lavatube|small|FILE.pcd|FILE.ply] [--seed N] [--out DIR]";
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut scene_name = "maze".to_string();
@@ -39,17 +44,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             _ => return Err(USAGE.into()),
         }
     }
-    let scene = match scene_name.as_str() {
-        "maze" => Scene::maze(seed),
-        "sinkhole" => Scene::sinkhole(seed),
-        "lavatube" => Scene::lava_tube(seed),
-        "small" => Scene::small(seed),
-        _ => return Err(USAGE.into()),
+    let config = FlightConfig::default();
+    let (name, world, area) = match scene_name.as_str() {
+        "maze" | "sinkhole" | "lavatube" | "small" => {
+            let scene = match scene_name.as_str() {
+                "maze" => Scene::maze(seed),
+                "sinkhole" => Scene::sinkhole(seed),
+                "lavatube" => Scene::lava_tube(seed),
+                _ => Scene::small(seed),
+            };
+            let area = Area::from(&scene);
+            (scene.name.clone(), scene.world()?, area)
+        }
+        file => {
+            // A point-cloud scene: occupied 0.1 m voxels; the start is the clearest point
+            // 1.5 m above the cloud's lowest point (see `Area::of_cloud`).
+            let path = PathBuf::from(file);
+            let cloud = if file.ends_with(".ply") {
+                load_ply(&path)?
+            } else if file.ends_with(".pcd") {
+                load_pcd(&path)?
+            } else {
+                return Err(USAGE.into());
+            };
+            let world = World::from_points(&cloud, 0.1)?;
+            let area = Area::of_cloud(&cloud, &world, config.height)
+                .ok_or("the cloud has no finite point")?;
+            let name = path
+                .file_stem()
+                .map_or_else(|| file.to_string(), |s| s.to_string_lossy().into_owned());
+            (name, world, area)
+        }
     };
     std::fs::create_dir_all(&out)?;
-    let world = scene.world()?;
-    let config = FlightConfig::default();
-    let route = out_and_back_route(&scene, &world, &config)?;
+    let route = out_and_back_route(&area, &world, &config)?;
     let traj = route_trajectory(&route, &config, 0.35)?;
     if std::env::var_os("FLY_DEBUG").is_some() {
         println!("route {route:?} duration {}", traj.duration());
@@ -81,7 +109,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "\"ape_unaligned_max_m\":{:.4},\"min_clearance_m\":{:.3},\"collisions\":{},",
             "\"frames\":{},\"lidar_frame_ms_mean\":{:.3},\"odometry_update_ms_mean\":{:.3}}}"
         ),
-        scene.name,
+        name,
         seed,
         trajectory_length(&truth),
         sim_time,
