@@ -19,30 +19,45 @@ use fu_mpc_examples::world::World;
 use lidar_kinematics::{AngleSample, KinematicChain, LidarSensor};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
-fn bench_rays(c: &mut Criterion) {
-    let scene = Scene::maze(1);
-    let world = scene.world().unwrap();
-    let n = 20_000u32;
+/// `n` directions spread evenly over the sphere (Fibonacci lattice).
+fn sphere(n: u32) -> Vec<Vector3<f64>> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let dirs: Vec<Vector3<f64>> = (0..n)
+    (0..n)
         .map(|i| {
             let z = 1.0 - 2.0 * (f64::from(i) + 0.5) / f64::from(n);
             let r = (1.0 - z * z).sqrt();
             let a = golden * f64::from(i);
             Vector3::new(r * a.cos(), r * a.sin(), z)
         })
-        .collect();
-    let origin = scene.start;
-    c.bench_function("world_20k_ray_casts_maze", |b| {
+        .collect()
+}
+
+/// Times casting every ray of `dirs` from `origin` with `cast`, counting the hits.
+fn bench_casts(
+    c: &mut Criterion,
+    name: &str,
+    dirs: &[Vector3<f64>],
+    origin: &Point3<f64>,
+    cast: impl Fn(&Point3<f64>, &Vector3<f64>) -> Option<f64>,
+) {
+    c.bench_function(name, |b| {
         b.iter(|| {
-            let mut hits = 0usize;
-            for d in &dirs {
-                if world.cast_ray(black_box(&origin), d, 40.0).is_some() {
-                    hits += 1;
-                }
-            }
+            let hits = dirs
+                .iter()
+                .filter(|d| cast(black_box(origin), d).is_some())
+                .count();
             black_box(hits)
         });
+    });
+}
+
+fn bench_rays(c: &mut Criterion) {
+    let scene = Scene::maze(1);
+    let world = scene.world().unwrap();
+    let dirs = sphere(20_000);
+    let origin = scene.start;
+    bench_casts(c, "world_20k_ray_casts_maze", &dirs, &origin, |o, d| {
+        world.cast_ray(o, d, 40.0)
     });
 }
 
@@ -108,38 +123,21 @@ fn bench_voxel_rays(c: &mut Criterion) {
         })
         .max_by(|a, b| world.distance(a).total_cmp(&world.distance(b)))
         .unwrap();
-    let n = 20_000u32;
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let dirs: Vec<Vector3<f64>> = (0..n)
-        .map(|i| {
-            let z = 1.0 - 2.0 * (f64::from(i) + 0.5) / f64::from(n);
-            let r = (1.0 - z * z).sqrt();
-            let a = golden * f64::from(i);
-            Vector3::new(r * a.cos(), r * a.sin(), z)
-        })
-        .collect();
-    c.bench_function("world_20k_ray_casts_apartment_voxels_dda", |b| {
-        b.iter(|| {
-            let mut hits = 0usize;
-            for d in &dirs {
-                if world.cast_ray(black_box(&origin), d, 40.0).is_some() {
-                    hits += 1;
-                }
-            }
-            black_box(hits)
-        });
-    });
-    c.bench_function("world_20k_ray_casts_apartment_voxels_parry", |b| {
-        b.iter(|| {
-            let mut hits = 0usize;
-            for d in &dirs {
-                if world.cast_ray_parry(black_box(&origin), d, 40.0).is_some() {
-                    hits += 1;
-                }
-            }
-            black_box(hits)
-        });
-    });
+    let dirs = sphere(20_000);
+    bench_casts(
+        c,
+        "world_20k_ray_casts_apartment_voxels_dda",
+        &dirs,
+        &origin,
+        |o, d| world.cast_ray(o, d, 40.0),
+    );
+    bench_casts(
+        c,
+        "world_20k_ray_casts_apartment_voxels_parry",
+        &dirs,
+        &origin,
+        |o, d| world.cast_ray_parry(o, d, 40.0),
+    );
 }
 
 /// One odometry update in the maze, after 20 frames of a straight flight at 2 m/s.

@@ -41,6 +41,9 @@ pub enum FlightError {
     /// The odometry failed.
     #[error(transparent)]
     Odometry(#[from] OdometryError),
+    /// A setting out of range.
+    #[error("flight setting {0} must be positive and finite")]
+    InvalidConfig(&'static str),
 }
 
 /// Settings of a flight.
@@ -154,6 +157,28 @@ impl Area {
         }
         let (_, _, start) = best?;
         Some(Self { min, max, start })
+    }
+}
+
+impl FlightConfig {
+    /// Checks the settings the route and the flight divide by or step with.
+    ///
+    /// # Errors
+    /// [`FlightError::InvalidConfig`] naming the first setting that is not positive and finite.
+    pub fn validate(&self) -> Result<(), FlightError> {
+        for (v, what) in [
+            (self.grid, "grid"),
+            (self.clearance, "clearance"),
+            (self.v_max, "v_max"),
+            (self.a_max, "a_max"),
+            (self.tracking_lag, "tracking_lag"),
+            (self.max_correction, "max_correction"),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(FlightError::InvalidConfig(what));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -301,6 +326,16 @@ pub fn out_and_back_route(
     world: &World,
     config: &FlightConfig,
 ) -> Result<Vec<Point3<f64>>, FlightError> {
+    config.validate()?;
+    if !area
+        .start
+        .iter()
+        .chain(area.min.iter())
+        .chain(area.max.iter())
+        .all(|v| v.is_finite())
+    {
+        return Err(FlightError::NoRoute("the area is not finite"));
+    }
     let z = area.start.z;
     let grid = Grid::new(area, world, z, config.grid);
     let start = area.start;
@@ -455,6 +490,16 @@ fn actual(
     Ok([plan[0] + off[0], plan[1] + off[1], plan[2] + off[2]])
 }
 
+impl FlightLog {
+    /// The true and the estimated positions at the frame ends.
+    pub fn positions(&self) -> (Vec<Point3<f64>>, Vec<Point3<f64>>) {
+        let at = |poses: &[Isometry3<f64>]| -> Vec<Point3<f64>> {
+            poses.iter().map(|p| p.translation.vector.into()).collect()
+        };
+        (at(&self.truth), at(&self.estimate))
+    }
+}
+
 /// The planned state at `t`: position, velocity, acceleration.
 fn planned(traj: &Trajectory<3>, t: f64) -> Result<[Vector3<f64>; 3], FlightError> {
     let t = t.clamp(0.0, traj.duration());
@@ -476,6 +521,7 @@ pub fn fly(
     config: &FlightConfig,
     seed: u64,
 ) -> Result<FlightLog, FlightError> {
+    config.validate()?;
     let chain = KinematicChain::default();
     let sensor = LidarSensor::mid360();
     let mut lidar = LidarSim::new(sensor, chain, config.lidar_noise, seed);
@@ -621,6 +667,40 @@ pub fn fly(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bad_settings_are_typed_errors() {
+        let world = World::from_boxes(&[]).unwrap();
+        let area = Area {
+            min: Point3::origin(),
+            max: Point3::new(5.0, 5.0, 3.0),
+            start: Point3::new(1.0, 1.0, 1.5),
+        };
+        for bad in [
+            FlightConfig {
+                grid: 0.0,
+                ..FlightConfig::default()
+            },
+            FlightConfig {
+                clearance: f64::NAN,
+                ..FlightConfig::default()
+            },
+            FlightConfig {
+                tracking_lag: -1.0,
+                ..FlightConfig::default()
+            },
+        ] {
+            assert!(matches!(
+                out_and_back_route(&area, &world, &bad),
+                Err(FlightError::InvalidConfig(_))
+            ));
+        }
+        let nan = Area {
+            start: Point3::new(f64::NAN, 1.0, 1.5),
+            ..area
+        };
+        assert!(out_and_back_route(&nan, &world, &FlightConfig::default()).is_err());
+    }
 
     #[test]
     fn a_cloud_area_starts_at_its_clearest_point() {

@@ -14,7 +14,7 @@ use lidar_kinematics::{
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::lidar::LidarPoint;
-use crate::registration::{Registration, RegistrationConfig, VoxelCloud, register};
+use crate::registration::{Registration, RegistrationConfig, VoxelCloud, register, voxel_key};
 use crate::uav::{GRAVITY, ImuSample};
 
 /// Times this close to the odometry's own count as equal \[s\] (rounding of sums of periods).
@@ -277,19 +277,12 @@ impl Odometry {
     }
 }
 
-/// The voxel of edge `v` holding `p`.
-fn voxel(p: &Point3<f64>, v: f64) -> [i64; 3] {
-    // Map coordinates are metres, far inside i64.
-    #[allow(clippy::cast_possible_truncation)]
-    p.coords.map(|c| (c / v).floor() as i64).into()
-}
-
 /// One point per voxel of edge `v` (the first), in input order.
 fn thin(points: &[Point3<f64>], v: f64) -> Vec<Point3<f64>> {
     let mut seen = rustc_hash::FxHashSet::default();
     points
         .iter()
-        .filter(|p| p.iter().all(|c| c.is_finite()) && seen.insert(voxel(p, v)))
+        .filter(|p| p.iter().all(|c| c.is_finite()) && seen.insert(voxel_key(p, v)))
         .copied()
         .collect()
 }

@@ -6,6 +6,7 @@
 
 use std::num::NonZeroUsize;
 
+use fu_mpc_core::least_eigen;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{
     Isometry3, Matrix3, Matrix6, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
@@ -168,6 +169,13 @@ struct VoxelBlock {
     points: [Point3<f64>; 64],
 }
 
+/// The voxel of edge `size` holding `p` (aligned with the origin).
+pub(crate) fn voxel_key(p: &Point3<f64>, size: f64) -> [i64; 3] {
+    // Map coordinates are metres, far inside i64 (and the cast saturates otherwise).
+    #[allow(clippy::cast_possible_truncation)]
+    p.coords.map(|c| (c / size).floor() as i64).into()
+}
+
 /// The block of a voxel and the voxel's slot in it.
 fn block_slot(v: [i64; 3]) -> ([i64; 3], usize) {
     // v & 3 is in 0..4, so the casts are exact.
@@ -187,9 +195,7 @@ impl VoxelCloud {
     }
 
     fn key(&self, p: &Point3<f64>) -> [i64; 3] {
-        // Map coordinates are metres, far inside i64.
-        #[allow(clippy::cast_possible_truncation)]
-        p.coords.map(|c| (c / self.size).floor() as i64).into()
+        voxel_key(p, self.size)
     }
 
     /// Adds `p` unless its voxel holds a point already (or it is not finite); whether it was
@@ -255,6 +261,9 @@ impl VoxelCloud {
 impl Neighbours for VoxelCloud {
     fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>) {
         out.clear();
+        if k == 0 {
+            return;
+        }
         let c = self.key(q);
         // The last block looked up: neighbouring voxels mostly share it.
         let mut cached: Option<([i64; 3], Option<&VoxelBlock>)> = None;
@@ -410,44 +419,6 @@ pub fn register(
     out
 }
 
-/// Eigenvalues (increasing) of a symmetric positive semi-definite 3 × 3 matrix and the unit
-/// eigenvector of the smallest, in closed form: the trigonometric solution of the
-/// characteristic cubic, and the largest cross product of two rows of A − λ₀I. `None` for a
-/// zero or non-finite matrix.
-fn least_eigen(a: &Matrix3<f64>) -> Option<([f64; 3], Vector3<f64>)> {
-    use core::f64::consts::TAU;
-    let scale = a.abs().max();
-    if !(scale.is_finite() && scale > 0.0) {
-        return None;
-    }
-    let m = a / scale;
-    let q = m.trace() / 3.0;
-    let p1 = m[(0, 1)].powi(2) + m[(0, 2)].powi(2) + m[(1, 2)].powi(2);
-    let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
-    let p = (p2 / 6.0).sqrt();
-    if p < 1e-12 {
-        // A multiple of the identity: no plane.
-        return None;
-    }
-    let b = (m - Matrix3::identity() * q) / p;
-    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
-    let phi = r.acos() / 3.0;
-    let hi = q + 2.0 * p * phi.cos();
-    let lo = q + 2.0 * p * (phi + TAU / 3.0).cos();
-    let mid = 3.0 * q - hi - lo;
-    let s = m - Matrix3::identity() * lo;
-    let (r0, r1, r2) = (
-        s.row(0).transpose(),
-        s.row(1).transpose(),
-        s.row(2).transpose(),
-    );
-    let best = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)]
-        .into_iter()
-        .max_by(|x, y| x.norm_squared().total_cmp(&y.norm_squared()))?;
-    let n = best.norm();
-    (n > 1e-300).then(|| ([lo * scale, mid * scale, hi * scale], best / n))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -520,27 +491,6 @@ mod tests {
 
     proptest::proptest! {
         #[test]
-        fn closed_form_eigen_matches_nalgebra(
-            v in proptest::collection::vec(-3.0f64..3.0, 9),
-        ) {
-            // A positive semi-definite matrix BᵀB.
-            let b = Matrix3::from_iterator(v);
-            let a = b.transpose() * b;
-            let eig = SymmetricEigen::new(a);
-            let mut l: Vec<f64> = eig.eigenvalues.iter().copied().collect();
-            l.sort_by(f64::total_cmp);
-            let gap = (l[1] - l[0]) / l[2].max(1e-12);
-            proptest::prop_assume!(l[2] > 1e-6 && gap > 1e-3);
-            let (got, n) = least_eigen(&a).unwrap();
-            for k in 0..3 {
-                proptest::prop_assert!((got[k] - l[k]).abs() <= 1e-8 * l[2], "{:?} vs {:?}", got, l);
-            }
-            // A unit vector with A n = λ₀ n.
-            proptest::prop_assert!((n.norm() - 1.0).abs() < 1e-9);
-            proptest::prop_assert!((a * n - n * l[0]).norm() <= 1e-6 * l[2].max(1.0) / gap.min(1.0));
-        }
-
-        #[test]
         fn voxel_neighbours_match_brute_force_within_a_voxel(
             pts in proptest::collection::vec((-2.0f64..2.0, -2.0f64..2.0, -1.0f64..1.0), 1..200),
             q in (-2.0f64..2.0, -2.0f64..2.0, -1.0f64..1.0),
@@ -556,6 +506,8 @@ mod tests {
             }
             let q = Point3::new(q.0, q.1, q.2);
             let mut got = Vec::new();
+            cloud.nearest(&q, 0, &mut got);
+            proptest::prop_assert!(got.is_empty());
             cloud.nearest(&q, 5, &mut got);
             let mut d: Vec<f64> = kept.iter().map(|p| (p - q).norm_squared()).collect();
             d.sort_by(f64::total_cmp);

@@ -343,6 +343,16 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Distance from `p` to the nearest of `boxes` (0 inside one).
+    fn nearest_box(boxes: &[(Point3<f64>, Point3<f64>)], p: &Point3<f64>) -> f64 {
+        boxes
+            .iter()
+            .map(|(lo, hi)| {
+                Vector3::from_fn(|k, _| (lo[k] - p[k]).max(p[k] - hi[k]).max(0.0)).norm()
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
     fn inside(boxes: &[(Point3<f64>, Point3<f64>)], p: &Point3<f64>) -> bool {
         boxes
             .iter()
@@ -398,13 +408,7 @@ mod tests {
                 }
             }
             // Distances: zero inside, otherwise the distance to the nearest box.
-            let truth = boxes
-                .iter()
-                .map(|(lo, hi)| {
-                    let q = Vector3::from_fn(|k, _| (lo[k] - origin[k]).max(origin[k] - hi[k]).max(0.0));
-                    q.norm()
-                })
-                .fold(f64::INFINITY, f64::min);
+            let truth = nearest_box(&boxes, &origin);
             prop_assert!((w.distance(&origin) - truth).abs() < 1e-4 * (1.0 + truth));
         }
     }
@@ -452,13 +456,7 @@ mod tests {
                 }
                 (None, Some(m)) => prop_assert!(false, "missed a hit at {}", m),
             }
-            let truth = boxes
-                .iter()
-                .map(|(lo, hi)| {
-                    let q = Vector3::from_fn(|k, _| (lo[k] - origin[k]).max(origin[k] - hi[k]).max(0.0));
-                    q.norm()
-                })
-                .fold(f64::INFINITY, f64::min);
+            let truth = nearest_box(&boxes, &origin);
             prop_assert!((w.distance(&origin) - truth).abs() < 1e-4 * (1.0 + truth), "{} vs {}", w.distance(&origin), truth);
         }
     }

@@ -4,7 +4,6 @@
 use fu_mpc_examples::flight::{FlightConfig, fly, out_and_back_route, route_trajectory};
 use fu_mpc_examples::metrics::{Alignment, ape, trajectory_length};
 use fu_mpc_examples::scene::Scene;
-use nalgebra::Point3;
 
 #[test]
 fn a_flight_through_the_small_scene_is_tracked_and_repeatable() {
@@ -18,16 +17,7 @@ fn a_flight_through_the_small_scene_is_tracked_and_repeatable() {
     // The trajectory goes out and back, several metres, within the speed limit.
     assert!(traj.duration() > 3.0);
     let log = fly(&world, &traj, &config, 3).unwrap();
-    let truth: Vec<Point3<f64>> = log
-        .truth
-        .iter()
-        .map(|p| p.translation.vector.into())
-        .collect();
-    let est: Vec<Point3<f64>> = log
-        .estimate
-        .iter()
-        .map(|p| p.translation.vector.into())
-        .collect();
+    let (truth, est) = log.positions();
     assert!(trajectory_length(&truth) > 5.0);
     assert_eq!(log.collisions, 0);
     assert!(log.min_clearance >= config.radius);
@@ -71,16 +61,7 @@ fn noiseless_odometry_over_100_m_of_maze_is_within_a_centimetre() {
     let route = out_and_back_route(&(&scene).into(), &world, &config).unwrap();
     let traj = route_trajectory(&route, &config, 0.35).unwrap();
     let log = fly(&world, &traj, &config, 1).unwrap();
-    let truth: Vec<Point3<f64>> = log
-        .truth
-        .iter()
-        .map(|p| p.translation.vector.into())
-        .collect();
-    let est: Vec<Point3<f64>> = log
-        .estimate
-        .iter()
-        .map(|p| p.translation.vector.into())
-        .collect();
+    let (truth, est) = log.positions();
     let length = trajectory_length(&truth);
     assert!(length > 100.0, "{length} m");
     let stats = ape(&truth, &est, Alignment::None).unwrap();

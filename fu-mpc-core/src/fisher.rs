@@ -278,13 +278,32 @@ pub(crate) fn normals(points: &[[f64; 3]], k: usize) -> Vec<Vector3<f64>> {
         .collect()
 }
 
-/// The unit eigenvector of the smallest eigenvalue of a symmetric 3 × 3 matrix, in closed
-/// form: the eigenvalues from the trigonometric solution of the characteristic cubic, the
-/// vector as the largest cross product of two rows of A − λI.
+/// The unit eigenvector of the smallest eigenvalue of a symmetric 3 × 3 matrix (see
+/// [`least_eigen`]); the z axis when it is not defined.
 pub(crate) fn least_eigenvector(a: &Matrix3<f64>) -> Vector3<f64> {
+    least_eigen(a).map_or_else(Vector3::z, |(_, v)| v)
+}
+
+/// The eigenvalues (increasing) of a symmetric 3 × 3 matrix and the unit eigenvector of the
+/// smallest, in closed form: the trigonometric solution of the characteristic cubic, and the
+/// largest cross product of two rows of A − λ₀I. For PCA normals of point neighbourhoods.
+///
+/// `None` for a zero or non-finite matrix, a multiple of the identity (every direction is an
+/// eigenvector), or a smallest eigenvalue of multiplicity two or more.
+///
+/// # Example
+/// ```
+/// use fu_mpc_core::least_eigen;
+/// use nalgebra::{Matrix3, Vector3};
+/// let a = Matrix3::from_diagonal(&Vector3::new(4.0, 1.0, 9.0));
+/// let (l, n) = least_eigen(&a).unwrap();
+/// assert!((l[0] - 1.0).abs() < 1e-12 && (l[2] - 9.0).abs() < 1e-12);
+/// assert!((n.y.abs() - 1.0).abs() < 1e-12);
+/// ```
+pub fn least_eigen(a: &Matrix3<f64>) -> Option<([f64; 3], Vector3<f64>)> {
     let scale = a.abs().max();
-    if scale.is_nan() || scale <= 0.0 || !scale.is_finite() {
-        return Vector3::z();
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
     }
     let m = a / scale;
     let q = m.trace() / 3.0;
@@ -292,28 +311,25 @@ pub(crate) fn least_eigenvector(a: &Matrix3<f64>) -> Vector3<f64> {
     let p2 = (m[(0, 0)] - q).powi(2) + (m[(1, 1)] - q).powi(2) + (m[(2, 2)] - q).powi(2) + 2.0 * p1;
     let p = (p2 / 6.0).sqrt();
     if p < 1e-12 {
-        // A multiple of the identity: every direction is an eigenvector.
-        return Vector3::z();
+        return None;
     }
     let b = (m - Matrix3::identity() * q) / p;
     let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
     let phi = r.acos() / 3.0;
-    // Smallest root of the cubic.
-    let lambda = q + 2.0 * p * (phi + TAU / 3.0).cos();
-    let s = m - Matrix3::identity() * lambda;
+    let hi = q + 2.0 * p * phi.cos();
+    let lo = q + 2.0 * p * (phi + TAU / 3.0).cos();
+    let mid = 3.0 * q - hi - lo;
+    let s = m - Matrix3::identity() * lo;
     let (r0, r1, r2) = (
         s.row(0).transpose(),
         s.row(1).transpose(),
         s.row(2).transpose(),
     );
-    let candidates = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)];
-    let best = candidates
-        .iter()
-        .max_by(|x, y| x.norm_squared().total_cmp(&y.norm_squared()))
-        .copied()
-        .unwrap_or_else(Vector3::z);
+    let best = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)]
+        .into_iter()
+        .max_by(|x, y| x.norm_squared().total_cmp(&y.norm_squared()))?;
     let n = best.norm();
-    if n > 1e-300 { best / n } else { Vector3::z() }
+    (n > 1e-300).then(|| ([lo * scale, mid * scale, hi * scale], best / n))
 }
 
 #[cfg(test)]
@@ -323,6 +339,27 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        #[test]
+        fn closed_form_eigen_matches_nalgebra(
+            v in proptest::collection::vec(-3.0f64..3.0, 9),
+        ) {
+            // A positive semi-definite matrix BᵀB.
+            let b = Matrix3::from_iterator(v);
+            let a = b.transpose() * b;
+            let eig = SymmetricEigen::new(a);
+            let mut l: Vec<f64> = eig.eigenvalues.iter().copied().collect();
+            l.sort_by(f64::total_cmp);
+            let gap = (l[1] - l[0]) / l[2].max(1e-12);
+            prop_assume!(l[2] > 1e-6 && gap > 1e-3);
+            let (got, n) = least_eigen(&a).unwrap();
+            for k in 0..3 {
+                prop_assert!((got[k] - l[k]).abs() <= 1e-8 * l[2], "{:?} vs {:?}", got, l);
+            }
+            // A unit vector with A n = λ₀ n.
+            prop_assert!((n.norm() - 1.0).abs() < 1e-9);
+            prop_assert!((a * n - n * l[0]).norm() <= 1e-6 * l[2].max(1.0) / gap.min(1.0));
+        }
+
         #[test]
         fn least_eigenvector_matches_a_reference(
             v in proptest::collection::vec(-3.0f64..3.0, 6),

@@ -45,7 +45,7 @@ mod utility;
 
 pub use controller::{FixedSpeed, ScanCommand, ScanController, ScanInput, ScanStatus};
 pub use error::{CoreError, Result};
-pub use fisher::{FisherConfig, FisherTable};
+pub use fisher::{FisherConfig, FisherTable, least_eigen};
 pub use mpc::{CostTerms, FuMpc, MpcConfig, MpcSolution, QpBackend};
 pub use predict::{PredictedStep, predict_into};
 pub use pwl::PeriodicPwl;

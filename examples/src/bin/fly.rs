@@ -21,7 +21,6 @@ use fu_mpc_examples::flight::{Area, FlightConfig, fly, out_and_back_route, route
 use fu_mpc_examples::metrics::{Alignment, ape, trajectory_length, write_tum};
 use fu_mpc_examples::scene::Scene;
 use fu_mpc_examples::world::World;
-use nalgebra::Point3;
 
 const USAGE: &str =
     "usage: fly [--scene maze|sinkhole|lavatube|small|FILE.pcd|FILE.ply] [--seed N] [--out DIR]";
@@ -85,16 +84,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let start = Instant::now();
     let log = fly(&world, &traj, &config, seed)?;
     let wall = start.elapsed().as_secs_f64();
-    let truth: Vec<Point3<f64>> = log
-        .truth
-        .iter()
-        .map(|p| p.translation.vector.into())
-        .collect();
-    let est: Vec<Point3<f64>> = log
-        .estimate
-        .iter()
-        .map(|p| p.translation.vector.into())
-        .collect();
+    let (truth, est) = log.positions();
     let raw = ape(&truth, &est, Alignment::None)?;
     let aligned = ape(&truth, &est, Alignment::Se3)?;
     let sim_time = log.times.last().copied().unwrap_or(0.0);

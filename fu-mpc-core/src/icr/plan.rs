@@ -786,58 +786,21 @@ mod tests {
     #[test]
     fn bad_input_is_a_typed_error() {
         let fov = Triangle::new(3.0, 0.5).unwrap();
-        assert!(
-            Icr::new(
-                IcrConfig {
-                    horizon: 0,
-                    ..IcrConfig::default()
-                },
-                fov
-            )
-            .is_err()
-        );
-        assert!(
-            Icr::new(
-                IcrConfig {
-                    kappa: 0.0,
-                    ..IcrConfig::default()
-                },
-                fov
-            )
-            .is_err()
-        );
-        assert!(
-            Icr::new(
-                IcrConfig {
-                    kappa: -1.0,
-                    ..IcrConfig::default()
-                },
-                fov
-            )
-            .is_err()
-        );
-        assert!(
-            Icr::new(
-                IcrConfig {
-                    tau: f64::NAN,
-                    ..IcrConfig::default()
-                },
-                fov
-            )
-            .is_err()
-        );
         let mut step = [0.0; 6];
         step[2] = -1.0;
-        assert!(
-            Icr::new(
-                IcrConfig {
-                    step,
-                    ..IcrConfig::default()
-                },
-                fov
-            )
-            .is_err()
-        );
+        let d = IcrConfig::default;
+        for cfg in [
+            IcrConfig { horizon: 0, ..d() },
+            IcrConfig { kappa: 0.0, ..d() },
+            IcrConfig { kappa: -1.0, ..d() },
+            IcrConfig {
+                tau: f64::NAN,
+                ..d()
+            },
+            IcrConfig { step, ..d() },
+        ] {
+            assert!(Icr::new(cfg, fov).is_err(), "{cfg:?}");
+        }
         let map = grid_map(1, 4, false);
         let mut icr = Icr::new(IcrConfig::default(), fov).unwrap();
         let u = vec![Vector6::zeros(); 5];
