@@ -459,16 +459,16 @@ pub struct FlightLog {
 /// The controller tracks the plan in the *estimated* frame: after each odometry update it
 /// moves its target offset by plan − estimate, and the UAV's true position follows.
 #[derive(Debug, Clone, Copy)]
-struct Tracking {
-    t0: f64,
-    start: Vector3<f64>,
-    target: Vector3<f64>,
-    tau: f64,
+pub(crate) struct Tracking {
+    pub(crate) t0: f64,
+    pub(crate) start: Vector3<f64>,
+    pub(crate) target: Vector3<f64>,
+    pub(crate) tau: f64,
 }
 
 impl Tracking {
     /// Offset, its rate and its acceleration at `t` (≥ `t0`).
-    fn offset(&self, t: f64) -> [Vector3<f64>; 3] {
+    pub(crate) fn offset(&self, t: f64) -> [Vector3<f64>; 3] {
         let e = (-(t - self.t0).max(0.0) / self.tau).exp();
         let d = self.start - self.target;
         [

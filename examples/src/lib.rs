@@ -11,13 +11,17 @@
 #![deny(missing_docs)]
 
 pub mod cloud_io;
+pub mod explorer;
 pub mod flight;
 pub mod icr2d;
 pub mod lidar;
 pub mod metrics;
 pub mod odometry;
+pub mod plot;
 pub mod registration;
+pub mod report;
 pub mod rng;
 pub mod scene;
+pub mod setup;
 pub mod uav;
 pub mod world;

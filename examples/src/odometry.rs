@@ -141,6 +141,12 @@ impl Odometry {
         &self.state
     }
 
+    /// The last frame, deskewed into the body frame at its end (before thinning); map it with
+    /// [`NavState::pose`] to place it in the world.
+    pub fn last_scan(&self) -> &[Point3<f64>] {
+        &self.deskewed
+    }
+
     /// Points in the local map.
     pub fn map_len(&self) -> usize {
         self.map.len()

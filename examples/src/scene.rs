@@ -231,46 +231,12 @@ impl Scene {
                 }
             }
         }
-        let mut reached = vec![false; nx * ny * nz];
-        let s = (
+        let s = [
             cell(self.start.x, 0, nx),
             cell(self.start.y, 1, ny),
             cell(self.start.z, 2, nz),
-        );
-        let mut queue = VecDeque::new();
-        if !solid[at(s.0, s.1, s.2)] {
-            reached[at(s.0, s.1, s.2)] = true;
-            queue.push_back(s);
-        }
-        let mut count = 0usize;
-        while let Some((x, y, z)) = queue.pop_front() {
-            count += 1;
-            let mut visit = |x: usize, y: usize, z: usize| {
-                let i = at(x, y, z);
-                if !solid[i] && !reached[i] {
-                    reached[i] = true;
-                    queue.push_back((x, y, z));
-                }
-            };
-            if x > 0 {
-                visit(x - 1, y, z);
-            }
-            if x + 1 < nx {
-                visit(x + 1, y, z);
-            }
-            if y > 0 {
-                visit(x, y - 1, z);
-            }
-            if y + 1 < ny {
-                visit(x, y + 1, z);
-            }
-            if z > 0 {
-                visit(x, y, z - 1);
-            }
-            if z + 1 < nz {
-                visit(x, y, z + 1);
-            }
-        }
+        ];
+        let (reached, count) = flood([nx, ny, nz], &solid, s);
         Explorable {
             resolution,
             dims: [nx, ny, nz],
@@ -279,6 +245,50 @@ impl Scene {
             count,
         }
     }
+}
+
+/// The cells 6-connected to `start` through cells that are not `solid` (x fastest, then y,
+/// then z), and their count.
+fn flood(dims: [usize; 3], solid: &[bool], start: [usize; 3]) -> (Vec<bool>, usize) {
+    let [nx, ny, nz] = dims;
+    let at = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
+    let mut reached = vec![false; nx * ny * nz];
+    let mut queue = VecDeque::new();
+    let [sx, sy, sz] = start;
+    if !solid[at(sx, sy, sz)] {
+        reached[at(sx, sy, sz)] = true;
+        queue.push_back((sx, sy, sz));
+    }
+    let mut count = 0usize;
+    while let Some((x, y, z)) = queue.pop_front() {
+        count += 1;
+        let mut visit = |x: usize, y: usize, z: usize| {
+            let i = at(x, y, z);
+            if !solid[i] && !reached[i] {
+                reached[i] = true;
+                queue.push_back((x, y, z));
+            }
+        };
+        if x > 0 {
+            visit(x - 1, y, z);
+        }
+        if x + 1 < nx {
+            visit(x + 1, y, z);
+        }
+        if y > 0 {
+            visit(x, y - 1, z);
+        }
+        if y + 1 < ny {
+            visit(x, y + 1, z);
+        }
+        if z > 0 {
+            visit(x, y, z - 1);
+        }
+        if z + 1 < nz {
+            visit(x, y, z + 1);
+        }
+    }
+    (reached, count)
 }
 
 /// The explorable free cells of a scene.
@@ -296,6 +306,56 @@ pub struct Explorable {
 }
 
 impl Explorable {
+    /// The cells of `[min, max]` at `resolution` \[m\] whose centre `solid` rejects and
+    /// that are 6-connected to the cell of `start`: the explorable space of a scene known only
+    /// through a query (e.g. a point-cloud world: centres at least a voxel from the cloud).
+    /// Empty for a start outside the region; at least one cell per axis.
+    pub fn from_fn(
+        min: Point3<f64>,
+        max: Point3<f64>,
+        start: &Point3<f64>,
+        resolution: f64,
+        solid: impl Fn(&Point3<f64>) -> bool + Sync,
+    ) -> Self {
+        let ext = max - min;
+        let dims = ext.map(|e| (e / resolution).ceil().max(1.0));
+        // Scene extents are metres over centimetres: the counts fit usize.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let [nx, ny, nz] = [dims.x as usize, dims.y as usize, dims.z as usize];
+        let centre = |i: usize| {
+            // Cell indices are far below 2^53.
+            #[allow(clippy::cast_precision_loss)]
+            let c = Vector3::new(
+                (i % nx) as f64,
+                ((i / nx) % ny) as f64,
+                (i / (nx * ny)) as f64,
+            );
+            min + (c + Vector3::repeat(0.5)) * resolution
+        };
+        use rayon::prelude::*;
+        let solid: Vec<bool> = (0..nx * ny * nz)
+            .into_par_iter()
+            .map(|i| solid(&centre(i)))
+            .collect();
+        let g = (start - min) / resolution;
+        let inside = (0..3).all(|k| g[k] >= 0.0 && g[k] < dims[k]);
+        let (reached, count) = if inside {
+            // Inside the grid, so the casts are exact.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let s = [g.x as usize, g.y as usize, g.z as usize];
+            flood([nx, ny, nz], &solid, s)
+        } else {
+            (vec![false; nx * ny * nz], 0)
+        };
+        Self {
+            resolution,
+            dims: [nx, ny, nz],
+            origin: min,
+            reached,
+            count,
+        }
+    }
+
     /// Whether the cell containing `p` is explorable.
     pub fn contains(&self, p: &Point3<f64>) -> bool {
         let g: Vector3<f64> = (p - self.origin) / self.resolution;
@@ -306,6 +366,31 @@ impl Explorable {
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let (x, y, z) = (g.x as usize, g.y as usize, g.z as usize);
         self.reached[x + self.dims[0] * (y + self.dims[1] * z)]
+    }
+
+    /// The share (0..1) of the explorable cells whose centre `known` accepts (1 for a scene
+    /// with no explorable cell).
+    pub fn coverage(&self, known: impl Fn(&Point3<f64>) -> bool) -> f64 {
+        if self.count == 0 {
+            return 1.0;
+        }
+        let [nx, ny, _] = self.dims;
+        let mut seen = 0usize;
+        for (i, _) in self.reached.iter().enumerate().filter(|(_, r)| **r) {
+            // Cell indices are far below 2^53.
+            #[allow(clippy::cast_precision_loss)]
+            let c = Vector3::new(
+                (i % nx) as f64,
+                ((i / nx) % ny) as f64,
+                (i / (nx * ny)) as f64,
+            );
+            if known(&(self.origin + (c + Vector3::repeat(0.5)) * self.resolution)) {
+                seen += 1;
+            }
+        }
+        #[allow(clippy::cast_precision_loss)]
+        let share = seen as f64 / self.count as f64;
+        share
     }
 
     /// Explorable volume \[m³\].

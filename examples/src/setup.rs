@@ -1,0 +1,103 @@
+//! Scenes by name for the programs: a generated scene (`maze`, `sinkhole`, `lavatube`,
+//! `small`) or a PCD/PLY point cloud, with its world, flight area and explorable space.
+
+use std::path::Path;
+
+use nalgebra::Point3;
+
+use crate::cloud_io::{CloudError, load_pcd, load_ply};
+use crate::flight::Area;
+use crate::scene::{Explorable, Scene};
+use crate::world::{World, WorldError};
+
+/// Voxel edge of point-cloud worlds \[m\].
+pub const CLOUD_VOXEL: f64 = 0.1;
+
+/// Errors setting up a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum SetupError {
+    /// Neither a generated scene's name nor a `.pcd`/`.ply` file.
+    #[error("unknown scene {0:?}: expected maze, sinkhole, lavatube, small, FILE.pcd or FILE.ply")]
+    UnknownScene(String),
+    /// The point cloud could not be read.
+    #[error(transparent)]
+    Cloud(#[from] CloudError),
+    /// The world could not be built.
+    #[error(transparent)]
+    World(#[from] WorldError),
+    /// The cloud has no finite point.
+    #[error("the cloud has no finite point")]
+    EmptyCloud,
+}
+
+/// A scene ready to fly.
+#[derive(Debug)]
+pub struct LoadedScene {
+    /// Short name (the generator's, or the file's stem).
+    pub name: String,
+    /// The world the sensors see.
+    pub world: World,
+    /// Bounds and start.
+    pub area: Area,
+    /// The explorable free cells at the requested resolution.
+    pub explorable: Explorable,
+}
+
+/// Loads scene `spec` with `seed` (generated scenes).
+///
+/// A point cloud becomes occupied [`CLOUD_VOXEL`] voxels; its area is
+/// [`Area::of_cloud`] (the clearest point near `height` above the lowest point); its
+/// explorable space is the cells of the bounding box at least a voxel from the cloud,
+/// 6-connected to the start. `start`, if given, replaces the default start.
+///
+/// # Errors
+/// [`SetupError`] for an unknown name, an unreadable cloud or an empty one.
+pub fn load_scene(
+    spec: &str,
+    seed: u64,
+    height: f64,
+    resolution: f64,
+    start: Option<Point3<f64>>,
+) -> Result<LoadedScene, SetupError> {
+    let generated = match spec {
+        "maze" => Some(Scene::maze(seed)),
+        "sinkhole" => Some(Scene::sinkhole(seed)),
+        "lavatube" => Some(Scene::lava_tube(seed)),
+        "small" => Some(Scene::small(seed)),
+        _ => None,
+    };
+    if let Some(mut scene) = generated {
+        if let Some(s) = start {
+            scene.start = s;
+        }
+        return Ok(LoadedScene {
+            name: scene.name.clone(),
+            world: scene.world()?,
+            area: Area::from(&scene),
+            explorable: scene.explorable(resolution),
+        });
+    }
+    let path = Path::new(spec);
+    let cloud = match path.extension().and_then(|e| e.to_str()) {
+        Some("pcd") => load_pcd(path)?,
+        Some("ply") => load_ply(path)?,
+        _ => return Err(SetupError::UnknownScene(spec.to_string())),
+    };
+    let world = World::from_points(&cloud, CLOUD_VOXEL)?;
+    let mut area = Area::of_cloud(&cloud, &world, height).ok_or(SetupError::EmptyCloud)?;
+    if let Some(s) = start {
+        area.start = s;
+    }
+    let explorable = Explorable::from_fn(area.min, area.max, &area.start, resolution, |p| {
+        world.distance(p) < CLOUD_VOXEL
+    });
+    let name = path
+        .file_stem()
+        .map_or_else(|| spec.to_string(), |s| s.to_string_lossy().into_owned());
+    Ok(LoadedScene {
+        name,
+        world,
+        area,
+        explorable,
+    })
+}
