@@ -1,4 +1,5 @@
 //! End-to-end: the complete explorer on the small scene.
+#![allow(clippy::unwrap_used)]
 
 use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore};
 use fu_mpc_examples::report::Report;
