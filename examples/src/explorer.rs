@@ -22,7 +22,7 @@ use std::time::Instant;
 
 use frontier::{
     Bounds, FrontierConfig, FrontierError, Frontiers, MapConfig, Omnidirectional, Target,
-    ViewpointConfig, VoxelMap, plan_targets,
+    ViewpointConfig, VoxelMap, plan_targets_among,
 };
 use fu_mpc_core::icr::{IcrScan, IcrScanConfig};
 use fu_mpc_core::{
@@ -30,8 +30,8 @@ use fu_mpc_core::{
     ScanController, ScanInput,
 };
 use lidar_kinematics::{
-    AngleSample, Encoder, Extrinsics, KinematicChain, KinematicsError, LidarSensor, MotorModel,
-    MotorState,
+    AngleSample, Encoder, Extrinsics, KinematicChain, KinematicsError, LidarSensor, MotorLimits,
+    MotorModel, MotorState,
 };
 use minco::{MincoError, Optimizer, OptimizerConfig, Trajectory};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -213,15 +213,30 @@ pub struct ExplorerConfig {
     pub viewpoints: ViewpointConfig,
     /// Transition costs (7)(8); `v_max` is overwritten by the run's.
     pub cost: CostConfig,
-    /// FU-MPC (and its single-term variants); the horizon, Δt and motor limits also drive the
-    /// other controllers.
+    /// FU-MPC (and its single-term variants); its horizon, Δt and limits also drive iCR.
+    /// Default: [`MpcConfig::default`] with the motor kept turning forward at 30–180 deg/s
+    /// (30 is the slowest of the paper's fixed speeds, 180 its limit): a scan that stopped
+    /// would keep seeing one vertical fan, and frontiers beside a fan that is already looking
+    /// at them never shrink, so the controller modulates the speed instead of stopping.
     pub mpc: MpcConfig,
+    /// What the motor can do (and the fixed-speed baselines may use); default
+    /// [`MotorLimits::default`], ±360 deg/s, so the paper's fastest fixed speed is reachable.
+    pub motor: MotorLimits,
     /// The Fisher table.
     pub fisher: FisherConfig,
     /// Frames between Fisher-table rebuilds (and iCR cloud updates); default 10 (1 Hz).
     pub fisher_frames: usize,
     /// Radius of the local cloud the Fisher table is built from \[m\]; default 15.
     pub fisher_radius: f64,
+    /// At most this many local-map points (an even subsample) enter the Fisher table;
+    /// default 5000.
+    pub fisher_points: usize,
+    /// At most this many frontier clusters, the nearest to the UAV, enter each global plan;
+    /// default 50 (the frontier crate's benchmark size).
+    pub max_clusters: usize,
+    /// The UAV hovers this long at the start while the motor spins up and the odometry builds
+    /// its first map \[s\]; default 2.
+    pub warmup: f64,
     /// Frames between global replans; default 5 (2 Hz, as the issue asks).
     pub replan_frames: usize,
     /// Least clearance of the topological graph's edges \[m\]; default 0.5.
@@ -230,14 +245,18 @@ pub struct ExplorerConfig {
     pub graph_radius: f64,
     /// New permanent graph nodes are at least this far from existing ones \[m\]; default 1.
     pub node_spacing: f64,
-    /// Corridor of the trajectories around the graph path \[m\]; default 0.15, so a trajectory
-    /// keeps at least `clearance − corridor` from known obstacles.
+    /// Corridor of the trajectories around the graph path \[m\]; default 0.1, so a trajectory
+    /// keeps about `clearance − corridor` from known obstacles.
     pub corridor: f64,
     /// Yaw rate of the rigid-yaw baseline \[rad/s\]; default 90 deg/s.
     pub yaw_rate: f64,
-    /// How long the plan may have frontiers but no reachable target before the run ends (no
-    /// reachable frontier left) \[s\]; default 5.
+    /// How long the plan may have no target, or none reachable, before the run ends (no
+    /// reachable frontier left) \[s\]; default 5: time for the sensor to sweep and the map
+    /// to open a way.
     pub stall_time: f64,
+    /// The harness stops a run whose estimate strays farther than this from the truth \[m\];
+    /// default 5.
+    pub lost_distance: f64,
     /// Frames between coverage samples; default 10 (1 Hz).
     pub coverage_frames: usize,
     /// Sensors, noise, odometry, UAV radius and tracking (the route settings are unused).
@@ -255,18 +274,31 @@ impl Default for ExplorerConfig {
             frontier: FrontierConfig::default(),
             viewpoints: ViewpointConfig::default(),
             cost: CostConfig::default(),
-            mpc: MpcConfig::default(),
+            mpc: MpcConfig {
+                limits: MotorLimits::try_new(
+                    30f64.to_radians(),
+                    core::f64::consts::PI,
+                    core::f64::consts::TAU,
+                )
+                .unwrap_or_default(),
+                ..MpcConfig::default()
+            },
+            motor: MotorLimits::default(),
             fisher: FisherConfig::default(),
             fisher_frames: 10,
             fisher_radius: 15.0,
+            fisher_points: 5000,
             replan_frames: 5,
+            warmup: 2.0,
+            max_clusters: 50,
             clearance: 0.5,
             graph_radius: 6.0,
             node_spacing: 1.0,
-            corridor: 0.15,
+            corridor: 0.1,
             yaw_rate: 90f64.to_radians(),
             stall_time: 5.0,
             coverage_frames: 10,
+            lost_distance: 5.0,
             flight: FlightConfig::default(),
         }
     }
@@ -291,6 +323,8 @@ impl ExplorerConfig {
             ("corridor", self.corridor),
             ("yaw_rate", self.yaw_rate),
             ("stall_time", self.stall_time),
+            ("lost_distance", self.lost_distance),
+            ("warmup", self.warmup),
         ] {
             if !pos(v) {
                 return bad(what, "must be positive and finite");
@@ -366,6 +400,12 @@ pub struct ExploreLog {
     /// Whether the run ended because no reachable frontier was left (rather than at the time
     /// budget).
     pub finished: bool,
+    /// Why the harness stopped the run early, if it did: `"odometry lost"` when the
+    /// estimate strayed more than [`ExplorerConfig::lost_distance`] from the truth, or
+    /// `"left the scene"` when the true position left the bounds by more than a metre. These
+    /// checks use the ground truth, which only the harness sees; a run that ends so is
+    /// neither finished nor scored as one.
+    pub aborted: Option<&'static str>,
     /// Simulated time at the end \[s\].
     pub exploration_time: f64,
     /// Frame end times \[s\].
@@ -384,6 +424,8 @@ pub struct ExploreLog {
     pub collisions: usize,
     /// Global replans that produced a new trajectory.
     pub trajectories: usize,
+    /// When each new trajectory started \[s\].
+    pub trajectory_starts: Vec<f64>,
     /// Frontier clusters left at the end (including unreachable ones).
     pub clusters_left: usize,
     /// Occupied cell centres of the final map (for the top-down picture).
@@ -460,9 +502,9 @@ impl Scan {
             }
             ControllerKind::Frontier => Self::Mpc(Box::new(FuMpc::frontier_only(mpc, chain)?)),
             ControllerKind::Fixed(deg) => {
-                Self::Fixed(FixedSpeed::new(deg.to_radians(), mpc.limits, mpc.dt)?)
+                Self::Fixed(FixedSpeed::new(deg.to_radians(), config.motor, mpc.dt)?)
             }
-            ControllerKind::RigidYaw => Self::Fixed(FixedSpeed::new(0.0, mpc.limits, mpc.dt)?),
+            ControllerKind::RigidYaw => Self::Fixed(FixedSpeed::new(0.0, config.motor, mpc.dt)?),
             ControllerKind::Icr => {
                 let cfg = IcrScanConfig {
                     horizon: mpc.horizon,
@@ -485,8 +527,8 @@ impl Scan {
 }
 
 /// Whether the segment a → b runs through known-free cells keeping `clearance` from occupied
-/// ones; within `relaxed` metres of `a` a clearance of half as much suffices (the UAV's own
-/// position may sit closer to a wall than the graph's edges do).
+/// ones; within `relaxed` metres of `a` 70 % of it suffices (the UAV's own position may sit
+/// closer to a wall than the graph's edges do).
 fn segment_free(
     map: &VoxelMap,
     a: &Point3<f64>,
@@ -506,7 +548,7 @@ fn segment_free(
     (0..=n).all(|i| {
         let s = f64::from(i) / f64::from(n);
         let c = if s * len < relaxed {
-            0.5 * clearance
+            0.7 * clearance
         } else {
             clearance
         };
@@ -631,13 +673,12 @@ struct Explorer<'a> {
     reference: Reference,
     /// The current target's viewpoint and the frontier centre it looks at.
     target: Option<(Point3<f64>, Point3<f64>)>,
-    /// Since when the plan has had targets but none reachable.
+    /// Since when the plan has had no target, or none reachable.
     stalled_since: Option<f64>,
     /// Viewpoints flown to whose frontier stayed: targets there are not chosen again.
     exhausted: Vec<Point3<f64>>,
     /// When the UAV reached the viewpoint it now hovers at.
     arrival: Option<f64>,
-    no_targets: bool,
     last_targets: usize,
 }
 
@@ -684,9 +725,20 @@ impl Explorer<'_> {
     fn plan(&mut self, t: f64, force: bool) -> Result<bool, ExploreError> {
         let [p, v, a] = self.reference.state(t)?;
         let here = Point3::from(p);
-        let plan = plan_targets(
+        // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
+        // and the tour is planned where the UAV can act next.
+        let mut clusters: Vec<&frontier::Cluster> = self.frontiers.clusters().collect();
+        if clusters.len() > self.config.max_clusters {
+            clusters.sort_by(|a, b| {
+                let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
+                d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
+            });
+            clusters.truncate(self.config.max_clusters);
+            clusters.sort_by_key(|c| c.id());
+        }
+        let plan = plan_targets_among(
             &self.map,
-            &self.frontiers,
+            &clusters,
             &here,
             &Omnidirectional,
             |_| true,
@@ -703,8 +755,8 @@ impl Explorer<'_> {
             })
             .collect();
         self.last_targets = targets.len();
-        self.no_targets = targets.is_empty();
         if targets.is_empty() {
+            self.stalled_since.get_or_insert(t);
             return Ok(false);
         }
         // The roadmap grows with the UAV's positions and the viewpoints (free, with clearance).
@@ -783,7 +835,8 @@ impl Explorer<'_> {
         let mut cfg = OptimizerConfig::default().with_limits(self.config.v_max, self.config.a_max);
         cfg.corridor_radius = Some(self.config.corridor);
         cfg.waypoint_weight = 1e4;
-        let traj = if (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
+        let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
+        let traj = if at_rest && (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
             // Already there: after a second of looking, a frontier that stays is out of view
             // from here; do not come back for it.
             match self.arrival {
@@ -857,7 +910,7 @@ pub fn explore(
     let sensor = LidarSensor::mid360();
     let mut lidar = LidarSim::new(sensor.clone(), chain, fc.lidar_noise, seed);
     let mut imu = ImuSim::new(fc.imu_noise, 200.0, seed.wrapping_add(1));
-    let motor = MotorModel::new(config.mpc.limits);
+    let motor = MotorModel::new(config.motor);
     let mut encoder = Encoder::new(fc.encoder);
     let mut scan = Scan::new(config.controller, config)?;
     let mut ex = Explorer {
@@ -878,7 +931,6 @@ pub fn explore(
         stalled_since: None,
         exhausted: Vec::new(),
         arrival: None,
-        no_targets: false,
         last_targets: 0,
     };
     let mut track = Tracking {
@@ -1038,12 +1090,13 @@ pub fn explore(
         let clock = Instant::now();
         let due = (k + 1).is_multiple_of(config.replan_frames as u64);
         let blocked = due && ex.blocked(t1)?;
-        if k > 0 && (due || ex.reference.done(t1)) {
+        if t1 >= config.warmup && (due || ex.reference.done(t1)) {
             if ex.reference.done(t1) || blocked {
                 ex.target = None;
             }
             if ex.plan(t1, blocked)? {
                 log.trajectories += 1;
+                log.trajectory_starts.push(t1);
             }
             log.timings.planning.push(ms(clock));
         }
@@ -1067,11 +1120,14 @@ pub fn explore(
             let clock = Instant::now();
             let here = Point3::from(estimate.translation.vector);
             let r2 = config.fisher_radius * config.fisher_radius;
-            let cloud: Vec<Point3<f64>> = odo
+            let near: Vec<Point3<f64>> = odo
                 .map_points()
                 .filter(|p| (*p - here).norm_squared() <= r2)
                 .copied()
                 .collect();
+            // An even subsample keeps the table's cost bounded in large open scenes.
+            let every = near.len().div_ceil(config.fisher_points.max(1)).max(1);
+            let cloud: Vec<Point3<f64>> = near.iter().step_by(every).copied().collect();
             match &mut scan {
                 Scan::Icr(c) => c.set_cloud(&cloud),
                 Scan::Mpc(_) => {
@@ -1112,7 +1168,19 @@ pub fn explore(
             targets: &scan_targets,
             fisher: fisher.as_ref(),
         };
-        command = scan.controller().command(&input)?.acceleration;
+        let band = match &scan {
+            Scan::Fixed(_) => None,
+            Scan::Mpc(_) | Scan::Icr(_) => Some(config.mpc.limits),
+        };
+        command = match band {
+            // Spin-up: the optimisers plan from a speed inside their band (they clamp the
+            // measured one into it), so the motor is first brought into the band.
+            Some(l) if !(l.omega_min()..=l.omega_max()).contains(&input.motor.omega) => {
+                let goal = input.motor.omega.clamp(l.omega_min(), l.omega_max());
+                l.saturate_acceleration((goal - input.motor.omega) / config.mpc.dt)
+            }
+            _ => scan.controller().command(&input)?.acceleration,
+        };
         log.timings.scan.push(ms(clock));
 
         if (k + 1).is_multiple_of(config.coverage_frames as u64)
@@ -1128,10 +1196,19 @@ pub fn explore(
             targets: ex.last_targets,
         });
         log.exploration_time = t1;
-        let nothing_left = ex.no_targets
-            || ex
-                .stalled_since
-                .is_some_and(|s| t1 - s >= config.stall_time);
+        let p = truth.translation.vector;
+        let outside = (0..3).any(|i| p[i] < mission.min[i] - 1.0 || p[i] > mission.max[i] + 1.0);
+        if (p - estimate.translation.vector).norm() > config.lost_distance {
+            log.aborted = Some("odometry lost");
+            break;
+        }
+        if outside {
+            log.aborted = Some("left the scene");
+            break;
+        }
+        let nothing_left = ex
+            .stalled_since
+            .is_some_and(|s| t1 - s >= config.stall_time);
         if k > 0 && nothing_left && ex.reference.done(t1) {
             log.finished = true;
             break;

@@ -52,6 +52,8 @@ pub struct Report {
     pub seed: u64,
     /// Whether the run ended with no reachable frontier left.
     pub finished: bool,
+    /// Why the harness stopped the run early, if it did.
+    pub aborted: Option<&'static str>,
     /// Simulated time at the end \[s\].
     pub exploration_time_s: f64,
     /// Length of the true trajectory \[m\].
@@ -105,6 +107,7 @@ impl Report {
             controller: log.controller.clone(),
             seed,
             finished: log.finished,
+            aborted: log.aborted,
             exploration_time_s: log.exploration_time,
             trajectory_length_m: trajectory_length(&truth),
             coverage: log.coverage.last().map(|&(_, c)| c),
@@ -137,6 +140,7 @@ impl Report {
             "controller": self.controller,
             "seed": self.seed,
             "finished": self.finished,
+            "aborted": self.aborted,
             "exploration_time_s": self.exploration_time_s,
             "trajectory_length_m": self.trajectory_length_m,
             "coverage": self.coverage,
@@ -165,10 +169,10 @@ impl Report {
             self.scene,
             self.controller,
             self.seed,
-            if self.finished {
-                "finished"
-            } else {
-                "NOT finished"
+            match (self.finished, self.aborted) {
+                (true, _) => "finished".to_string(),
+                (false, Some(why)) => format!("ABORTED ({why})"),
+                (false, None) => "NOT finished".to_string(),
             },
             self.exploration_time_s,
             self.wall_time_s,

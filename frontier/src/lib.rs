@@ -50,7 +50,7 @@ pub use grid::{Bounds, Cell, Grid, MAX_CELLS_PER_AXIS};
 pub use map::{CellBox, CellChange, CellState, FrameUpdate, MapConfig, VoxelMap};
 pub use viewpoint::{
     ElevationBand, FieldOfView, Omnidirectional, Plan, Target, ViewpointConfig, cell_visible,
-    plan_targets, sample_candidates, viewpoint_valid, visibility_ratio,
+    plan_targets, plan_targets_among, sample_candidates, viewpoint_valid, visibility_ratio,
 };
 
 /// The README's example, compiled and run as a doctest.

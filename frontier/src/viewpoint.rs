@@ -424,13 +424,31 @@ pub fn plan_targets(
     supported: impl Fn(&Point3<f64>) -> bool,
     config: &ViewpointConfig,
 ) -> Result<Plan> {
+    let clusters: Vec<&Cluster> = frontiers.clusters().collect();
+    plan_targets_among(map, &clusters, uav, fov, supported, config)
+}
+
+/// [`plan_targets`] over a chosen subset of clusters, taken in the given order (for example
+/// the clusters nearest to the UAV, in id order, to bound the work in a large map). Clusters
+/// of another map's frontier give meaningless targets.
+///
+/// # Errors
+/// As [`plan_targets`].
+pub fn plan_targets_among(
+    map: &VoxelMap,
+    clusters: &[&Cluster],
+    uav: &Point3<f64>,
+    fov: &impl FieldOfView,
+    supported: impl Fn(&Point3<f64>) -> bool,
+    config: &ViewpointConfig,
+) -> Result<Plan> {
     config.validate()?;
     if !uav.iter().all(|v| v.is_finite()) {
         return Err(FrontierError::NonFinite {
             what: "UAV position",
         });
     }
-    let clusters: Vec<&Cluster> = frontiers.clusters().collect();
+    let clusters: Vec<&Cluster> = clusters.to_vec();
     let samples = clusters
         .iter()
         .map(|c| subsample(c.cells(), config.visibility_samples))

@@ -5,7 +5,7 @@ mod common;
 
 use frontier::{
     Bounds, ElevationBand, FrontierConfig, Frontiers, MapConfig, Omnidirectional, ViewpointConfig,
-    VoxelMap, cell_visible, plan_targets, viewpoint_valid, visibility_ratio,
+    VoxelMap, cell_visible, plan_targets, plan_targets_among, viewpoint_valid, visibility_ratio,
 };
 use nalgebra::Point3;
 
@@ -71,6 +71,22 @@ fn representatives_are_valid_and_see_every_member() {
     };
     let narrow = plan_targets(&map, &f, &uav, &band, |_| true, &cfg).unwrap();
     assert!(narrow.unviewable.len() >= plan.unviewable.len());
+    // Over every cluster, the subset form is the same plan; over a subset, only its members.
+    let all: Vec<_> = f.clusters().collect();
+    let among = plan_targets_among(&map, &all, &uav, &Omnidirectional, |_| true, &cfg).unwrap();
+    assert_eq!(among, plan);
+    let some = &all[..all.len() / 2];
+    let part = plan_targets_among(&map, some, &uav, &Omnidirectional, |_| true, &cfg).unwrap();
+    let chosen: Vec<_> = some.iter().map(|c| c.id()).collect();
+    let members: usize = part.targets.iter().map(|t| t.members.len()).sum();
+    assert_eq!(members + part.unviewable.len(), some.len());
+    assert!(
+        part.targets
+            .iter()
+            .flat_map(|t| t.members.iter())
+            .chain(part.unviewable.iter())
+            .all(|id| chosen.contains(id))
+    );
 }
 
 #[test]
