@@ -1249,3 +1249,199 @@ fn measured_motor(angles: &[AngleSample], latency: f64) -> Option<MotorState> {
 fn ms(clock: Instant) -> f64 {
     clock.elapsed().as_secs_f64() * 1e3
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    #[test]
+    fn controller_names_round_trip_and_bad_ones_are_errors() {
+        for name in [
+            "fu-mpc",
+            "fixed:30",
+            "fixed:100",
+            "fixed:360",
+            "uncertainty",
+            "frontier",
+            "icr",
+            "rigid-yaw",
+        ] {
+            let kind: ControllerKind = name.parse().unwrap();
+            assert_eq!(kind.to_string(), name);
+        }
+        assert!(!ControllerKind::RigidYaw.spins());
+        assert!(ControllerKind::Fixed(0.0).spins());
+        for bad in [
+            "",
+            "fixed",
+            "fixed:",
+            "fixed:-5",
+            "fixed:nan",
+            "fixed:inf",
+            "mpc",
+        ] {
+            assert!(
+                matches!(
+                    bad.parse::<ControllerKind>(),
+                    Err(ExploreError::UnknownController(_))
+                ),
+                "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_settings_and_starts_are_typed_errors() {
+        let scene = Scene::small(1);
+        let world = scene.world().unwrap();
+        let mission = Mission {
+            world: &world,
+            min: scene.min,
+            max: scene.max,
+            start: scene.start,
+            explorable: None,
+        };
+        for bad in [
+            ExplorerConfig {
+                max_time: f64::NAN,
+                ..ExplorerConfig::default()
+            },
+            ExplorerConfig {
+                v_max: 0.0,
+                ..ExplorerConfig::default()
+            },
+            ExplorerConfig {
+                replan_frames: 0,
+                ..ExplorerConfig::default()
+            },
+            ExplorerConfig {
+                controller: ControllerKind::Fixed(-1.0),
+                ..ExplorerConfig::default()
+            },
+        ] {
+            assert!(matches!(
+                explore(&mission, &bad, 1, |_| {}),
+                Err(ExploreError::InvalidConfig { .. })
+            ));
+        }
+        let config = ExplorerConfig::default();
+        for start in [
+            Point3::new(-5.0, 1.0, 1.0),
+            Point3::new(6.0, 0.5, 1.0), // inside the dividing wall
+        ] {
+            let m = Mission { start, ..mission };
+            assert!(matches!(
+                explore(&m, &config, 1, |_| {}),
+                Err(ExploreError::BadStart(_))
+            ));
+        }
+        // A bad map resolution is the frontier crate's typed error.
+        let mut bad_map = ExplorerConfig::default();
+        bad_map.map.resolution = -0.2;
+        assert!(matches!(
+            explore(&mission, &bad_map, 1, |_| {}),
+            Err(ExploreError::Frontier(_))
+        ));
+    }
+
+    #[test]
+    fn a_short_run_stops_at_its_budget_with_a_consistent_log() {
+        let scene = Scene::small(2);
+        let world = scene.world().unwrap();
+        let explorable = scene.explorable(0.2);
+        let mission = Mission {
+            world: &world,
+            min: scene.min,
+            max: scene.max,
+            start: scene.start,
+            explorable: Some(&explorable),
+        };
+        let config = ExplorerConfig {
+            controller: ControllerKind::RigidYaw,
+            max_time: 4.0,
+            ..ExplorerConfig::default()
+        };
+        let mut calls = 0;
+        let log = explore(&mission, &config, 3, |_| calls += 1).unwrap();
+        assert!(!log.finished);
+        assert_eq!(log.aborted, None);
+        assert_eq!(log.times.len(), 40);
+        assert_eq!(calls, 40);
+        assert_eq!(log.truth.len(), log.estimate.len());
+        assert_eq!(log.motor_speed.len(), 40);
+        // The rigid LiDAR does not turn.
+        assert!(log.motor_speed.iter().all(|w| w.abs() < 1e-9));
+        // Coverage once a second, plus none extra at the end (4 s is a whole second).
+        assert_eq!(log.coverage.len(), 4);
+        assert!(log.coverage.iter().all(|&(_, c)| (0.0..=1.0).contains(&c)));
+        assert!(!log.occupied.is_empty());
+        // The UAV hovered through the warm-up: no trajectory before 2 s.
+        assert!(log.trajectory_starts.iter().all(|&t| t >= config.warmup));
+    }
+
+    #[test]
+    fn grid_paths_go_round_walls_and_keep_their_clearance() {
+        // A fully known 10 × 6 × 3 m box with a wall across x = 5 leaving a gap at y > 4.
+        let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(10.0, 6.0, 3.0)).unwrap();
+        let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
+        let wall = |p: &Point3<f64>| (p.x - 5.0).abs() < 0.15 && p.y < 4.0;
+        let mut hits = Vec::new();
+        for o in [Point3::new(2.0, 3.0, 1.5), Point3::new(8.0, 3.0, 1.5)] {
+            hits.clear();
+            for i in 0..200 {
+                for j in 0..100 {
+                    let az = f64::from(i) / 200.0 * core::f64::consts::TAU;
+                    let el = (f64::from(j) / 100.0 - 0.5) * core::f64::consts::PI;
+                    let d = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                    // March to the first wall or bound.
+                    let mut t = 0.0;
+                    let mut end = o;
+                    while t < 12.0 {
+                        let p = o + d * t;
+                        if !bounds.contains(&p) {
+                            break;
+                        }
+                        end = p;
+                        if wall(&p) {
+                            break;
+                        }
+                        t += 0.05;
+                    }
+                    hits.push(end);
+                }
+            }
+            map.insert_frame(&o, &hits).unwrap();
+        }
+        let (a, b) = (Point3::new(2.0, 2.0, 1.5), Point3::new(8.0, 2.0, 1.5));
+        assert!(!segment_free(&map, &a, &b, 0.5, 0.0));
+        let path = grid_path(&map, &a, &b, 0.5, 200_000).unwrap();
+        assert_eq!(path.first(), Some(&a));
+        assert_eq!(path.last(), Some(&b));
+        // The path goes through the gap, and every leg is free with the clearance.
+        assert!(path.iter().any(|p| p.y > 4.0));
+        for w in path.windows(2) {
+            assert!(segment_free(&map, &w[0], &w[1], 0.5, 0.0), "{w:?}");
+        }
+        // No path when the gap is too narrow for the clearance.
+        assert!(grid_path(&map, &a, &b, 1.2, 200_000).is_none());
+    }
+
+    #[test]
+    fn yaw_turns_toward_its_goal_at_its_rate_the_short_way() {
+        let r = Reference {
+            traj: None,
+            t0: 0.0,
+            hover: Vector3::zeros(),
+            yaw0: 3.0,
+            yaw_t0: 1.0,
+            yaw_goal: 3.0 + wrap(-3.0 - 3.0),
+            yaw_rate: 1.0,
+        };
+        // From 3 rad to −3 rad the short way is +0.28 rad, through π.
+        assert!((r.yaw(1.1) - 3.1).abs() < 1e-12);
+        assert!((r.yaw(5.0) - (3.0 + wrap(-6.0))).abs() < 1e-12);
+        assert!((wrap(-3.0 - 3.0) - (core::f64::consts::TAU - 6.0)).abs() < 1e-12);
+        assert!(r.done(0.0));
+    }
+}

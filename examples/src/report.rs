@@ -340,3 +340,77 @@ pub fn write_pictures(dir: &Path, log: &ExploreLog) -> std::io::Result<()> {
     .write(&dir.join("ape.png"))?;
     map_picture(log).write(&dir.join("map_top.png"))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Isometry3;
+
+    fn log(n: usize) -> ExploreLog {
+        // Sizes are tiny.
+        #[allow(clippy::cast_precision_loss)]
+        let truth: Vec<Isometry3<f64>> = (0..n)
+            .map(|i| Isometry3::translation(i as f64, 0.0, 1.0))
+            .collect();
+        let estimate = truth
+            .iter()
+            .map(|p| Isometry3::translation(0.0, 0.1, 0.0) * p)
+            .collect();
+        #[allow(clippy::cast_precision_loss)]
+        let times = (0..n).map(|i| 0.1 * (i + 1) as f64).collect();
+        ExploreLog {
+            controller: "fu-mpc".into(),
+            finished: true,
+            exploration_time: 0.1 * 4.0,
+            times,
+            truth,
+            estimate,
+            motor_speed: vec![1.0; n],
+            coverage: vec![(0.2, 0.5), (0.4, 0.75)],
+            min_clearance: 0.8,
+            timings: ModuleTimes {
+                scan: vec![1.0, 3.0],
+                ..ModuleTimes::default()
+            },
+            ..ExploreLog::default()
+        }
+    }
+
+    #[test]
+    fn the_summary_holds_the_paper_metrics() {
+        let r = Report::new("small", 3, &log(4), 2.0).unwrap();
+        assert!((r.trajectory_length_m - 3.0).abs() < 1e-12);
+        assert!((r.ape_unaligned.rmse - 0.1).abs() < 1e-12);
+        assert!(r.ape.rmse < 1e-9, "alignment removes a constant shift");
+        assert_eq!(r.coverage, Some(0.75));
+        let scan = r.modules.iter().find(|(n, _)| *n == "scan").unwrap().1;
+        assert!((scan.mean_ms - 2.0).abs() < 1e-12 && (scan.max_ms - 3.0).abs() < 1e-12);
+        assert!((r.scan_share - 0.002).abs() < 1e-12);
+        let j = r.json();
+        for key in [
+            "scene",
+            "controller",
+            "seed",
+            "finished",
+            "exploration_time_s",
+            "trajectory_length_m",
+            "coverage",
+            "ape_rmse_m",
+            "ape_mean_m",
+            "ape_max_m",
+            "min_clearance_m",
+            "collisions",
+            "sim_time_s",
+            "wall_time_s",
+            "modules",
+        ] {
+            assert!(j.get(key).is_some(), "{key}");
+        }
+        assert!(r.screen().contains("finished"));
+        // Too short a log for the alignment is an error, not a panic.
+        assert!(Report::new("small", 3, &log(2), 1.0).is_err());
+        // The pictures draw.
+        let pic = map_picture(&log(4));
+        assert!(pic.width() > 20 && pic.height() > 20);
+    }
+}

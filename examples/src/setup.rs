@@ -101,3 +101,50 @@ pub fn load_scene(
         explorable,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_files_and_starts() {
+        assert!(matches!(
+            load_scene("nowhere", 1, 1.5, 0.2, None),
+            Err(SetupError::UnknownScene(_))
+        ));
+        assert!(matches!(
+            load_scene("/no/such/file.pcd", 1, 1.5, 0.2, None),
+            Err(SetupError::Cloud(_))
+        ));
+        let s = load_scene("small", 1, 1.5, 0.2, Some(Point3::new(2.0, 2.0, 1.0))).unwrap();
+        assert_eq!(s.name, "small");
+        assert_eq!(s.area.start, Point3::new(2.0, 2.0, 1.0));
+        assert!(s.explorable.contains(&Point3::new(2.0, 2.0, 1.0)));
+    }
+
+    #[test]
+    fn explorable_space_of_a_query_is_the_reachable_free_cells() {
+        // A 4 × 2 × 1 m box split by a solid slab at x ∈ [1.9, 2.1]: only the start's half.
+        let e = Explorable::from_fn(
+            Point3::origin(),
+            Point3::new(4.0, 2.0, 1.0),
+            &Point3::new(0.5, 0.5, 0.5),
+            0.2,
+            |p| (p.x - 2.0).abs() < 0.1,
+        );
+        assert_eq!(e.count, 9 * 10 * 5);
+        assert!(e.contains(&Point3::new(0.1, 1.9, 0.9)));
+        assert!(!e.contains(&Point3::new(3.0, 1.0, 0.5)));
+        assert!((e.coverage(|p| p.x < 1.0) - 5.0 / 9.0).abs() < 1e-12);
+        // A start outside the region: nothing explorable, and full coverage by convention.
+        let none = Explorable::from_fn(
+            Point3::origin(),
+            Point3::new(4.0, 2.0, 1.0),
+            &Point3::new(-1.0, 0.5, 0.5),
+            0.2,
+            |_| false,
+        );
+        assert_eq!(none.count, 0);
+        assert!((none.coverage(|_| false) - 1.0).abs() < 1e-12);
+    }
+}
