@@ -7,7 +7,7 @@
 //! at the *estimated* pose into a [`VoxelMap`] and updates the incremental [`Frontiers`].
 //! Global planning (every [`ExplorerConfig::replan_frames`] frames, and whenever the
 //! trajectory ends or is blocked) samples viewpoints and dynamic clusters
-//! ([`plan_targets`]), prices them along a topological graph with the costs (7)(8), orders
+//! ([`frontier::plan_targets`]), prices them along a topological graph with the costs (7)(8), orders
 //! them by an open ATSP tour (9) and flies a MINCO trajectory along the graph path to the
 //! first one. The scan controller then chooses the motor's acceleration along the predicted
 //! trajectory (10 Hz), with the Fisher table rebuilt from the odometry's local map every
@@ -207,6 +207,9 @@ pub struct ExplorerConfig {
     pub a_max: f64,
     /// The occupancy map (0.2 m cells, 20 m insertion range).
     pub map: MapConfig,
+    /// The deskewed frame is thinned to one point per voxel of this edge before it enters the
+    /// map \[m\]; default 0.1, half the map's cell.
+    pub map_voxel: f64,
     /// Frontier clustering.
     pub frontier: FrontierConfig,
     /// Viewpoint sampling and dynamic clustering.
@@ -229,7 +232,7 @@ pub struct ExplorerConfig {
     /// Radius of the local cloud the Fisher table is built from \[m\]; default 15.
     pub fisher_radius: f64,
     /// At most this many local-map points (an even subsample) enter the Fisher table;
-    /// default 5000.
+    /// default 3000.
     pub fisher_points: usize,
     /// At most this many frontier clusters, the nearest to the UAV, enter each global plan;
     /// default 50 (the frontier crate's benchmark size).
@@ -271,6 +274,7 @@ impl Default for ExplorerConfig {
             v_max: 2.0,
             a_max: 2.0,
             map: MapConfig::default(),
+            map_voxel: 0.1,
             frontier: FrontierConfig::default(),
             viewpoints: ViewpointConfig::default(),
             cost: CostConfig::default(),
@@ -287,7 +291,7 @@ impl Default for ExplorerConfig {
             fisher: FisherConfig::default(),
             fisher_frames: 10,
             fisher_radius: 15.0,
-            fisher_points: 5000,
+            fisher_points: 3000,
             replan_frames: 5,
             warmup: 2.0,
             max_clusters: 50,
@@ -315,6 +319,7 @@ impl ExplorerConfig {
         for (what, v) in [
             ("max_time", self.max_time),
             ("v_max", self.v_max),
+            ("map_voxel", self.map_voxel),
             ("a_max", self.a_max),
             ("fisher_radius", self.fisher_radius),
             ("clearance", self.clearance),
@@ -785,7 +790,8 @@ impl Explorer<'_> {
         let mut cost = self.config.cost;
         cost.v_max = self.config.v_max;
         let m = cost_matrix(&self.graph, odom, &views, [v.x, v.y, v.z], &cost)?;
-        let tour = solve_open(&m, &SolverConfig::default(), || false)?.tour;
+        // The real-time preset: LKH's own budget of n trials, for a planner that re-solves twice a second.
+        let tour = solve_open(&m, &SolverConfig::fast(), || false)?.tour;
         // The first target of the tour with a graph path; failing that, the first ones the
         // grid search reaches (their paths then join the graph).
         let mut chosen: Option<(usize, Vec<[f64; 3]>)> = None;
@@ -1065,7 +1071,10 @@ pub fn explore(
         // Mapping at the estimated pose, from the sensor's estimated position.
         let clock = Instant::now();
         world_points.clear();
-        world_points.extend(odo.last_scan().iter().map(|p| estimate * p));
+        // One return per `map_voxel` voxel: rays into one map cell from one origin are
+        // nearly the same ray.
+        let thinned = crate::odometry::thin(odo.last_scan(), config.map_voxel);
+        world_points.extend(thinned.iter().map(|p| estimate * p));
         let origin =
             estimate * Point3::from(chain.lidar_in_body(motor_state.theta)?.translation.vector);
         if ex.map.bounds().contains(&origin) {

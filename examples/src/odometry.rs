@@ -284,7 +284,7 @@ impl Odometry {
 }
 
 /// One point per voxel of edge `v` (the first), in input order.
-fn thin(points: &[Point3<f64>], v: f64) -> Vec<Point3<f64>> {
+pub(crate) fn thin(points: &[Point3<f64>], v: f64) -> Vec<Point3<f64>> {
     let mut seen = rustc_hash::FxHashSet::default();
     points
         .iter()
