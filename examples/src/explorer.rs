@@ -207,8 +207,10 @@ pub struct ExplorerConfig {
     pub a_max: f64,
     /// The occupancy map (0.2 m cells, 20 m insertion range).
     pub map: MapConfig,
-    /// The deskewed frame is thinned to one point per voxel of this edge before it enters the
-    /// map \[m\]; default 0.1, half the map's cell.
+    /// If positive, the deskewed frame is thinned to one point per voxel of this edge before
+    /// it enters the map \[m\]; default 0 (every return). Thinning saves insertion time but
+    /// leaves unknown gaps between sparse long rays, which cut the graph's known-free paths:
+    /// at 0.1 m the maze run stopped after 20 s with 111 clusters unreachable.
     pub map_voxel: f64,
     /// Frontier clustering.
     pub frontier: FrontierConfig,
@@ -274,7 +276,7 @@ impl Default for ExplorerConfig {
             v_max: 2.0,
             a_max: 2.0,
             map: MapConfig::default(),
-            map_voxel: 0.1,
+            map_voxel: 0.0,
             frontier: FrontierConfig::default(),
             viewpoints: ViewpointConfig::default(),
             cost: CostConfig::default(),
@@ -319,7 +321,6 @@ impl ExplorerConfig {
         for (what, v) in [
             ("max_time", self.max_time),
             ("v_max", self.v_max),
-            ("map_voxel", self.map_voxel),
             ("a_max", self.a_max),
             ("fisher_radius", self.fisher_radius),
             ("clearance", self.clearance),
@@ -334,6 +335,9 @@ impl ExplorerConfig {
             if !pos(v) {
                 return bad(what, "must be positive and finite");
             }
+        }
+        if !(self.map_voxel.is_finite() && self.map_voxel >= 0.0) {
+            return bad("map_voxel", "must be finite and >= 0");
         }
         if self.fisher_frames == 0 || self.replan_frames == 0 || self.coverage_frames == 0 {
             return bad(
@@ -1071,10 +1075,14 @@ pub fn explore(
         // Mapping at the estimated pose, from the sensor's estimated position.
         let clock = Instant::now();
         world_points.clear();
-        // One return per `map_voxel` voxel: rays into one map cell from one origin are
-        // nearly the same ray.
-        let thinned = crate::odometry::thin(odo.last_scan(), config.map_voxel);
-        world_points.extend(thinned.iter().map(|p| estimate * p));
+        // Optionally one return per `map_voxel` voxel: rays into one map cell from one
+        // origin are nearly the same ray.
+        if config.map_voxel > 0.0 {
+            let thinned = crate::odometry::thin(odo.last_scan(), config.map_voxel);
+            world_points.extend(thinned.iter().map(|p| estimate * p));
+        } else {
+            world_points.extend(odo.last_scan().iter().map(|p| estimate * p));
+        }
         let origin =
             estimate * Point3::from(chain.lidar_in_body(motor_state.theta)?.translation.vector);
         if ex.map.bounds().contains(&origin) {
