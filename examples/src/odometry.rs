@@ -1,7 +1,7 @@
 //! The simulator's LiDAR-inertial odometry: IMU propagation, deskew of each frame with the
 //! propagated poses and the encoder's angles, point-to-plane registration against a local map
-//! of earlier registered points with a prior holding the pose at the IMU's prediction, and a
-//! simple fusion of the two.
+//! of earlier registered points (optionally with a prior holding the pose at the IMU's
+//! prediction), and a simple fusion of the two.
 //!
 //! Its error comes only from the simulated sensors and the geometry the LiDAR sees: nothing is
 //! injected by hand. The IMU biases are not estimated (the registration corrects the drift
@@ -252,9 +252,8 @@ impl Odometry {
                     // Too little geometry to trust: keep the IMU's prediction.
                     r.pose = predicted;
                 }
-                // Fusion: the registered pose (which weighs the prediction through its prior,
-                // see `RegistrationConfig::prior_translation`) replaces the prediction; part of
-                // the position correction per frame period goes into the velocity.
+                // Fusion: the registered pose replaces the prediction; part of the position
+                // correction per frame period goes into the velocity.
                 let period = (t_end - self.poses[0].time).max(1e-6);
                 let correction = r.pose.translation.vector - predicted.translation.vector;
                 self.state.velocity += self.config.velocity_gain * correction / period;
