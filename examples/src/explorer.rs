@@ -7,8 +7,8 @@
 //! at the *estimated* pose into a [`VoxelMap`] and updates the incremental [`Frontiers`].
 //! Global planning (every [`ExplorerConfig::replan_frames`] frames, and whenever the
 //! trajectory ends or is blocked) samples viewpoints and dynamic clusters
-//! ([`frontier::plan_targets`]), prices them along a topological graph with the costs (7)(8), orders
-//! them by an open ATSP tour (9) and flies a MINCO trajectory along the graph path to the
+//! ([`frontier::plan_targets`]), prices them along a topological graph with the costs
+//! (7)(8), orders them by an open ATSP tour (9) and flies a MINCO trajectory along the graph path to the
 //! first one. The scan controller then chooses the motor's acceleration along the predicted
 //! trajectory (10 Hz), with the Fisher table rebuilt from the odometry's local map every
 //! [`ExplorerConfig::fisher_frames`] frames — a fixed cycle, so a run is deterministic.
@@ -794,7 +794,8 @@ impl Explorer<'_> {
         let mut cost = self.config.cost;
         cost.v_max = self.config.v_max;
         let m = cost_matrix(&self.graph, odom, &views, [v.x, v.y, v.z], &cost)?;
-        // The real-time preset: LKH's own budget of n trials, for a planner that re-solves twice a second.
+        // The real-time preset (LKH's own budget of n trials): the planner re-solves twice a
+        // second.
         let tour = solve_open(&m, &SolverConfig::fast(), || false)?.tour;
         // The first target of the tour with a graph path; failing that, the first ones the
         // grid search reaches (their paths then join the graph).
@@ -1077,12 +1078,14 @@ pub fn explore(
         world_points.clear();
         // Optionally one return per `map_voxel` voxel: rays into one map cell from one
         // origin are nearly the same ray.
-        if config.map_voxel > 0.0 {
-            let thinned = crate::odometry::thin(odo.last_scan(), config.map_voxel);
-            world_points.extend(thinned.iter().map(|p| estimate * p));
+        let thinned;
+        let frame = if config.map_voxel > 0.0 {
+            thinned = crate::odometry::thin(odo.last_scan(), config.map_voxel);
+            &thinned[..]
         } else {
-            world_points.extend(odo.last_scan().iter().map(|p| estimate * p));
-        }
+            odo.last_scan()
+        };
+        world_points.extend(frame.iter().map(|p| estimate * p));
         let origin =
             estimate * Point3::from(chain.lidar_in_body(motor_state.theta)?.translation.vector);
         if ex.map.bounds().contains(&origin) {
@@ -1334,6 +1337,14 @@ mod tests {
             },
             ExplorerConfig {
                 controller: ControllerKind::Fixed(-1.0),
+                ..ExplorerConfig::default()
+            },
+            ExplorerConfig {
+                map_voxel: -0.1,
+                ..ExplorerConfig::default()
+            },
+            ExplorerConfig {
+                map_voxel: f64::NAN,
                 ..ExplorerConfig::default()
             },
         ] {

@@ -398,22 +398,26 @@ pub fn register(
             break;
         }
         // The prior holding the pose at the initial guess, the IMU's prediction (a MAP
-        // estimate with the prediction as the mean): under the left perturbation ξ = [ω; v] the position t moves
-        // by ω × t + v and the attitude by ω. `h` itself stays the points' information.
-        let t = pose.translation.vector;
-        let rt = t - initial.translation.vector;
-        let rr = (pose.rotation * initial.rotation.inverse()).scaled_axis();
-        let mut jt = Matrix3x6::zeros();
-        jt.fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&(-t.cross_matrix()));
-        jt.fixed_view_mut::<3, 3>(0, 3)
-            .copy_from(&Matrix3::identity());
-        let mut jr = Matrix3x6::zeros();
-        jr.fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&Matrix3::identity());
+        // estimate with the prediction as the mean): under the left perturbation ξ = [ω; v]
+        // the position t moves by ω × t + v and the attitude by ω. `h` itself stays the
+        // points' information.
         let (wt, wr) = (cfg.prior_translation, cfg.prior_rotation);
-        let a = h + wt * jt.transpose() * jt + wr * jr.transpose() * jr;
-        let g = g + wt * jt.transpose() * rt + wr * jr.transpose() * rr;
+        let (mut a, mut g) = (h, g);
+        if wt > 0.0 || wr > 0.0 {
+            let t = pose.translation.vector;
+            let rt = t - initial.translation.vector;
+            let rr = (pose.rotation * initial.rotation.inverse()).scaled_axis();
+            let mut jt = Matrix3x6::zeros();
+            jt.fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&(-t.cross_matrix()));
+            jt.fixed_view_mut::<3, 3>(0, 3)
+                .copy_from(&Matrix3::identity());
+            let mut jr = Matrix3x6::zeros();
+            jr.fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&Matrix3::identity());
+            a += wt * jt.transpose() * jt + wr * jr.transpose() * jr;
+            g += wt * jt.transpose() * rt + wr * jr.transpose() * rr;
+        }
         // A little Levenberg damping keeps the step defined when the geometry leaves a
         // direction unconstrained (a corridor's axis) and the prior is off: that direction
         // then stays at the prediction while the others are corrected.
