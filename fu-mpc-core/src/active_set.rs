@@ -28,6 +28,12 @@ pub(crate) struct ActiveSet {
     gamma: f64,
     rho: f64,
     dt: f64,
+    /// The Thomas factorisation of the tridiagonal H: superdiagonal ratios c_i and inverse
+    /// pivots 1/m_i, so H⁻¹x costs O(n) instead of a dense product.
+    thomas_c: Vec<f64>,
+    thomas_inv: Vec<f64>,
+    /// H's off-diagonal −2γ.
+    off: f64,
     /// H⁻¹, row-major.
     minv: Vec<f64>,
     /// P[i][k] = (H⁻¹ ℓ_k)_i with ℓ_k = Δt (1, …, 1, 0, …) (k + 1 ones).
@@ -95,6 +101,17 @@ impl ActiveSet {
                 minv[i * n + col] = x;
             }
         }
+        let mut thomas_c = vec![0.0; n];
+        let mut thomas_inv = vec![0.0; n];
+        for i in 0..n {
+            let m = if i == 0 {
+                diag[0]
+            } else {
+                diag[i] - off * thomas_c[i - 1]
+            };
+            thomas_inv[i] = 1.0 / m;
+            thomas_c[i] = off / m;
+        }
         let mut p = vec![0.0; n * n];
         for i in 0..n {
             let mut acc = 0.0;
@@ -116,6 +133,9 @@ impl ActiveSet {
             gamma,
             rho,
             dt,
+            thomas_c,
+            thomas_inv,
+            off,
             minv,
             p,
             q,
@@ -225,11 +245,9 @@ impl ActiveSet {
             return false;
         }
         let m = self.working.len();
-        let n = self.n;
         let cap = self.cap;
-        for i in 0..n {
-            self.hg[i] = (0..n).map(|j| self.minv[i * n + j] * self.g[j]).sum();
-        }
+        self.hg.copy_from_slice(&self.g);
+        thomas(&self.thomas_c, &self.thomas_inv, self.off, &mut self.hg);
         for a in 0..m {
             self.rhs[a] = -self.dot(self.working[a], &self.hg);
         }
@@ -257,9 +275,21 @@ impl ActiveSet {
         self.working.clear();
         self.factored = 0;
         // Warm start: the constraints active at u, while they stay independent.
+        // Prefix sums make each speed row's aᵀu O(1).
+        let mut cu = 0.0;
+        for j in 0..n {
+            cu += u[j];
+            self.cum_u[j] = self.dt * cu;
+        }
         let rows = (0..n).flat_map(|j| [Row::UHi(j), Row::ULo(j), Row::WHi(j), Row::WLo(j)]);
         for r in rows {
-            let slack = Self::bound(r, qp) - self.dot(r, u);
+            let au = match r {
+                Row::UHi(j) => u[j],
+                Row::ULo(j) => -u[j],
+                Row::WHi(k) => self.cum_u[k],
+                Row::WLo(k) => -self.cum_u[k],
+            };
+            let slack = Self::bound(r, qp) - au;
             if slack.abs() <= 1e-12 * (1.0 + Self::bound(r, qp).abs()) {
                 self.working.push(r);
                 if !self.extend_factor() {
@@ -293,9 +323,10 @@ impl ActiveSet {
                 self.axpy(self.working[a], self.lambda[a], &mut t);
             }
             for i in 0..n {
-                self.v[i] = -(0..n).map(|j| self.minv[i * n + j] * t[j]).sum::<f64>();
+                self.v[i] = -t[i];
             }
             self.step = t;
+            thomas(&self.thomas_c, &self.thomas_inv, self.off, &mut self.v);
             let norm = self.v.iter().map(|x| x.abs()).fold(0.0, f64::max);
             // Stationary up to the rounding of the working set's solve (its matrix can be
             // ill-conditioned: prefix sums of neighbouring steps are nearly parallel).
@@ -387,6 +418,22 @@ impl ActiveSet {
             }
         }
         false
+    }
+}
+
+/// Overwrites `x` with H⁻¹x for the tridiagonal H of Thomas factors `c`, `inv` and
+/// off-diagonal `off`.
+fn thomas(c: &[f64], inv: &[f64], off: f64, x: &mut [f64]) {
+    let n = x.len();
+    if n == 0 {
+        return;
+    }
+    x[0] *= inv[0];
+    for i in 1..n {
+        x[i] = (x[i] - off * x[i - 1]) * inv[i];
+    }
+    for i in (0..n - 1).rev() {
+        x[i] -= c[i] * x[i + 1];
     }
 }
 

@@ -178,6 +178,10 @@ pub struct FuMpc {
     motor: MotorModel,
     name: &'static str,
     surrogates: Vec<PeriodicPwl>,
+    /// α J_k + β f per step on the shared knots, when the Fisher table has the surrogates'
+    /// knot count: one table lookup per step in the solver's many rollouts instead of two.
+    combined: Vec<PeriodicPwl>,
+    combined_valid: bool,
     previous: Vec<f64>,
     solution: MpcSolution,
     work: Work,
@@ -204,6 +208,8 @@ impl FuMpc {
             motor: MotorModel::new(config.limits),
             name,
             surrogates: Vec::new(),
+            combined: Vec::new(),
+            combined_valid: false,
             previous: vec![0.0; n],
             work: Work {
                 best: vec![0.0; n],
@@ -399,6 +405,85 @@ impl FuMpc {
         t
     }
 
+    /// Fills the combined tables α J_k + β f for steps 1..N when f shares the surrogates'
+    /// knots (or is absent); otherwise marks them invalid and the solver evaluates the terms
+    /// apart.
+    fn build_combined(&mut self, fisher: Option<&PeriodicPwl>) -> Result<()> {
+        let c = &self.config;
+        let knots = c.knots;
+        self.combined_valid = fisher.is_none_or(|f| f.len() == knots);
+        if !self.combined_valid {
+            return Ok(());
+        }
+        let n = c.horizon;
+        if self.combined.len() != n || self.combined.iter().any(|f| f.len() != knots) {
+            self.combined.clear();
+            for _ in 0..n {
+                self.combined.push(PeriodicPwl::new(vec![0.0; knots])?);
+            }
+        }
+        let (alpha, beta) = (c.alpha, c.beta);
+        for (table, j) in self.combined.iter_mut().zip(&self.surrogates[1..]) {
+            let values = table.values_mut();
+            for (i, x) in values.iter_mut().enumerate() {
+                let mut v = 0.0;
+                if alpha > 0.0 {
+                    v += alpha * j.values()[i];
+                }
+                if let (Some(f), true) = (fisher, beta > 0.0) {
+                    v += beta * f.values()[i];
+                }
+                *x = v;
+            }
+        }
+        Ok(())
+    }
+
+    /// The total cost (19) of a feasible sequence and, with `slopes`, its θ-slopes per step,
+    /// from the combined tables when they are valid.
+    fn total(
+        &self,
+        theta0: f64,
+        omega0: f64,
+        u: &[f64],
+        fisher: Option<&PeriodicPwl>,
+        slopes: Option<&mut [f64]>,
+    ) -> f64 {
+        if !self.combined_valid {
+            return self.rollout(theta0, omega0, u, fisher, slopes).total();
+        }
+        let c = &self.config;
+        let (mut th, mut w) = (theta0, omega0);
+        let mut cost = 0.0;
+        let mut smooth = 0.0;
+        let mut prev = u.first().copied().unwrap_or(0.0);
+        match slopes {
+            Some(s) => {
+                for ((x, table), slope) in u.iter().zip(&self.combined).zip(s.iter_mut()) {
+                    w += x * c.dt; // eq. (11), inside the limits
+                    th += w * c.dt; // eq. (12)
+                    let (v, d) = table.eval(th);
+                    cost += v;
+                    *slope = d;
+                    let du = x - prev;
+                    smooth += du * du;
+                    prev = *x;
+                }
+            }
+            None => {
+                for (x, table) in u.iter().zip(&self.combined) {
+                    w += x * c.dt;
+                    th += w * c.dt;
+                    cost += table.value(th);
+                    let du = x - prev;
+                    smooth += du * du;
+                    prev = *x;
+                }
+            }
+        }
+        cost + c.gamma * smooth
+    }
+
     fn solve(&mut self, input: &ScanInput<'_>) -> Result<ScanStatus> {
         let c = self.config;
         let n = c.horizon;
@@ -407,6 +492,7 @@ impl FuMpc {
         let omega0 = input.motor.omega.clamp(l.omega_min(), l.omega_max());
         let fisher = input.fisher.map(|f| f.cost());
         self.build_surrogates(input)?;
+        self.build_combined(fisher)?;
         let mut w = core::mem::take(&mut self.work);
         // Warm starts: the shifted previous solution, constant-speed and cruise-then-stop
         // sequences.
@@ -414,10 +500,10 @@ impl FuMpc {
         w.best.rotate_left(1);
         w.best[n - 1] = self.previous[n - 1];
         self.make_feasible(omega0, &mut w.best);
-        let mut best_cost = self.cost(theta0, omega0, &w.best, fisher).total();
+        let mut best_cost = self.total(theta0, omega0, &w.best, fisher, None);
         let mut consider = |this: &Self, w: &mut Work| {
             this.make_feasible(omega0, &mut w.cand);
-            let cc = this.cost(theta0, omega0, &w.cand, fisher).total();
+            let cc = this.total(theta0, omega0, &w.cand, fisher, None);
             if cc < best_cost {
                 best_cost = cc;
                 w.best.copy_from_slice(&w.cand);
@@ -459,7 +545,7 @@ impl FuMpc {
         w.qp.omega0 = omega0;
         for _ in 0..c.iterations {
             iterations += 1;
-            self.rollout(theta0, omega0, &w.best, fisher, Some(&mut w.slopes));
+            self.total(theta0, omega0, &w.best, fisher, Some(&mut w.slopes));
             // q_j = Σ_{k>j} s_k Δt² (k − j) − ρ ū_j: θ_k moves by Δt²(k − j) per unit of u_j.
             let (mut acc, mut weighted) = (0.0, 0.0);
             for j in (0..n).rev() {
@@ -493,7 +579,7 @@ impl FuMpc {
                     w.trial[j] = w.best[j] + t * (w.x[j] - w.best[j]);
                 }
                 self.make_feasible(omega0, &mut w.trial);
-                let tc = self.cost(theta0, omega0, &w.trial, fisher).total();
+                let tc = self.total(theta0, omega0, &w.trial, fisher, None);
                 if tc < cost - 1e-12 * (1.0 + cost.abs()) {
                     w.best.copy_from_slice(&w.trial);
                     cost = tc;
@@ -549,5 +635,73 @@ impl ScanController for FuMpc {
             acceleration: self.solution.controls[0],
             status,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::FrontierTarget;
+    use lidar_kinematics::MotorState;
+    use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+    /// The combined tables give the same total as the terms evaluated apart.
+    #[test]
+    fn combined_tables_match_the_separate_terms() {
+        let cfg = MpcConfig::default();
+        let mut mpc = FuMpc::new(cfg, KinematicChain::default()).unwrap();
+        let fisher =
+            PeriodicPwl::new((0..72).map(|c| 2.0 + (0.3 * f64::from(c)).sin()).collect()).unwrap();
+        let refs: Vec<_> = (0..=cfg.horizon)
+            .map(|i| {
+                let t = 0.1 * f64::from(u32::try_from(i).unwrap());
+                Isometry3::from_parts(
+                    Translation3::new(t, 0.5 * t, 0.0),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3 * t),
+                )
+            })
+            .collect();
+        let targets = [
+            FrontierTarget {
+                center: Point3::new(3.0, 1.0, 0.0),
+                score: 20.0,
+            },
+            FrontierTarget {
+                center: Point3::new(-2.0, 4.0, 1.0),
+                score: 5.0,
+            },
+        ];
+        let input = ScanInput {
+            motor: MotorState::new(0.4, 1.0),
+            reference: &refs,
+            targets: &targets,
+            fisher: None,
+        };
+        mpc.build_surrogates(&input).unwrap();
+        mpc.build_combined(Some(&fisher)).unwrap();
+        assert!(mpc.combined_valid);
+        let mut s1 = vec![0.0; cfg.horizon];
+        let mut s2 = vec![0.0; cfg.horizon];
+        for seed in 0..20u32 {
+            let mut u: Vec<f64> = (0..cfg.horizon)
+                .map(|k| {
+                    (f64::from(seed) * 1.7 + 0.9 * f64::from(u32::try_from(k).unwrap())).sin() * 6.0
+                })
+                .collect();
+            mpc.make_feasible(1.0, &mut u);
+            let a = mpc.total(0.4, 1.0, &u, Some(&fisher), Some(&mut s1));
+            let b = mpc
+                .rollout(0.4, 1.0, &u, Some(&fisher), Some(&mut s2))
+                .total();
+            assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+            for (x, y) in s1.iter().zip(&s2) {
+                assert!((x - y).abs() <= 1e-9 * (1.0 + y.abs()), "{x} vs {y}");
+            }
+        }
+        // A table on another grid is evaluated apart.
+        let coarse = PeriodicPwl::new(vec![1.0; 36]).unwrap();
+        mpc.build_combined(Some(&coarse)).unwrap();
+        assert!(!mpc.combined_valid);
     }
 }

@@ -87,19 +87,32 @@ impl PeriodicPwl {
         let nf = n as f64;
         let mut x = theta * self.scale;
         if !(0.0..nf).contains(&x) {
-            // Wrap into [0, n) without fmod (the hot path of the MPC).
-            x -= nf * (x / nf).floor();
+            // Wrap into [0, n] without fmod or a libm floor (the hot path of the MPC).
+            let q = x / nf;
+            if q.abs() < 1e15 {
+                // |q| < 2^53: the truncation is exact, and a step down makes it the floor.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_precision_loss)]
+                let mut k = q as i64 as f64;
+                if k > q {
+                    k -= 1.0;
+                }
+                x -= nf * k;
+            } else {
+                x = x.rem_euclid(nf);
+            }
         }
         if !x.is_finite() {
             return (self.values[0], 0.0);
         }
-        let f = x.floor();
-        // x ∈ [0, n), so the index is in range (rem_euclid may round up to n: wrap it).
+        // x ∈ [0, n], so truncation is the floor (no libm call, no integer division in the
+        // MPC's hot path); the wrap may round up to n, which is knot 0.
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let i = (f as usize) % n;
-        let j = if i + 1 == n { 0 } else { i + 1 };
+        let fi = x as usize;
+        #[allow(clippy::cast_precision_loss)]
+        let t = x - fi as f64;
+        let i = if fi >= n { 0 } else { fi };
+        let j = if i + 1 >= n { 0 } else { i + 1 };
         let (a, b) = (self.values[i], self.values[j]);
-        let t = x - f;
         (a + t * (b - a), (b - a) * self.scale)
     }
 
@@ -139,6 +152,31 @@ mod tests {
                 let fd = (f.value(th + h) - f.value(th - h)) / (2.0 * h);
                 prop_assert!((fd - s).abs() <= 1e-5 * (1.0 + s.abs()));
             }
+        }
+    }
+
+    #[test]
+    fn far_angles_wrap_like_a_euclidean_remainder() {
+        let f = PeriodicPwl::new((0..72).map(|c| f64::from(c).sin()).collect()).unwrap();
+        for th in [
+            -1e6,
+            -12345.678,
+            -TAU,
+            -1e-300,
+            0.0,
+            7.5,
+            1e6 + 0.25,
+            3e14,
+            -3e14,
+            1e17,
+            1e300,
+        ] {
+            let x = (th * f.scale).rem_euclid(72.0);
+            let (i, t) = (x.floor() as usize % 72, x - x.floor());
+            let want = f.values[i] + t * (f.values[(i + 1) % 72] - f.values[i]);
+            let got = f.value(th);
+            // Both wraps are exact (k N_c is an integer below 2^53), so they agree closely.
+            assert!((got - want).abs() <= 1e-12, "θ = {th}: {got} vs {want}");
         }
     }
 

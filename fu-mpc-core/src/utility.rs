@@ -162,15 +162,20 @@ pub fn frontier_surrogates(
             }
             let first = ((phi - reach) / h).ceil();
             let last = ((phi + reach) / h).floor();
+            // Knot index of `first`, wrapped into [0, knots) once; the loop then steps it with
+            // a compare instead of a division per knot. |first| ≤ knots, so the cast is exact.
+            #[allow(clippy::cast_possible_truncation)]
+            let mut c = (first as i64).rem_euclid(knots as i64) as usize;
             let mut k = first;
             while k <= last {
-                // Wrap the knot index into [0, knots).
-                #[allow(clippy::cast_possible_truncation)]
-                let c = (k as i64).rem_euclid(knots as i64) as usize;
                 // |k h − φ| ≤ δ + h/2 < π here, so the offset needs no wrapping.
                 let off = (k * h - phi).abs();
                 values[c] += r * gate(off, delta, h);
                 k += 1.0;
+                c += 1;
+                if c == knots {
+                    c = 0;
+                }
             }
         }
         if !total.is_finite() {

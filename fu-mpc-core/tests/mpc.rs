@@ -90,8 +90,10 @@ proptest! {
         targets in proptest::collection::vec((-8.0f64..8.0, -8.0f64..8.0, -1.0f64..2.0, 0.0f64..100.0), 0..6),
         alpha in 0.0f64..3.0, beta in 0.0f64..3.0, gamma in 0.0f64..0.1,
         with_table in proptest::bool::ANY,
+        // 72 knots share the Fisher table's grid (the solver's combined tables); 36 do not.
+        knots in proptest::sample::select(vec![72usize, 36]),
     ) {
-        let cfg = MpcConfig { alpha, beta, gamma, ..MpcConfig::default() };
+        let cfg = MpcConfig { alpha, beta, gamma, knots, ..MpcConfig::default() };
         let chain = KinematicChain::default();
         let table = with_table.then(room_table);
         let targets: Vec<_> = targets
