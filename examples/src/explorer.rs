@@ -944,12 +944,7 @@ pub fn explore(
         arrival: None,
         last_targets: 0,
     };
-    let mut track = Tracking {
-        t0: 0.0,
-        start: Vector3::zeros(),
-        target: Vector3::zeros(),
-        tau: fc.tracking_lag,
-    };
+    let mut track = Tracking::at_rest(0.0, fc.tracking_lag);
     let actual =
         |r: &Reference, track: &Tracking, t: f64| -> Result<[Vector3<f64>; 3], ExploreError> {
             let plan = r.state(t)?;
@@ -1099,12 +1094,7 @@ pub fn explore(
         let now = track.offset(t1)[0];
         let shift = plan_now - estimate.translation.vector;
         let shift = shift * (fc.max_correction / shift.norm().max(fc.max_correction));
-        track = Tracking {
-            t0: t1,
-            start: now,
-            target: now + shift,
-            tau: fc.tracking_lag,
-        };
+        track = track.retarget(t1, now + shift);
 
         // Global planning at its rate, when the trajectory ends, or when it is blocked.
         let clock = Instant::now();

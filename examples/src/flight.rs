@@ -67,8 +67,9 @@ pub struct FlightConfig {
     pub motor_speed_deg: f64,
     /// Radius of the UAV \[m\]: a clearance below it is a collision; default 0.25.
     pub radius: f64,
-    /// Time constant of the position tracking \[s\]: the true position follows the plan
-    /// corrected by the odometry's error with this lag; default 0.5.
+    /// Mean delay of the position tracking \[s\]: the true position follows the plan
+    /// corrected by the odometry's error with this lag (three critically damped poles, so
+    /// the true acceleration and attitude stay continuous); default 0.5.
     pub tracking_lag: f64,
     /// Largest shift of the tracking target per odometry update \[m\]; default 0.2.
     pub max_correction: f64,
@@ -454,27 +455,65 @@ pub struct FlightLog {
 }
 
 /// The true motion: the plan shifted by an offset that follows the tracking controller's
-/// target with a first-order lag of time constant `tau`.
+/// target as a critically damped third-order system: three poles of time constant `tau / 3`,
+/// so the mean delay is `tau`, as for a first-order lag of time constant `tau`.
 ///
 /// The controller tracks the plan in the *estimated* frame: after each odometry update it
-/// moves its target offset by plan − estimate, and the UAV's true position follows.
+/// moves its target offset by plan − estimate, and the UAV's true position follows. The offset's
+/// position, velocity and acceleration stay continuous when the target moves
+/// ([`Tracking::retarget`]): the IMU, which measures only acceleration and body rate, then sees
+/// all of the true motion. (A first-order lag jumps the velocity at every retarget and a
+/// second-order one the acceleration, hence the attitude: motions no IMU reports, which a
+/// filter trusting its IMU cannot follow.)
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Tracking {
+    /// Time of the last retarget \[s\].
     pub(crate) t0: f64,
-    pub(crate) start: Vector3<f64>,
-    pub(crate) target: Vector3<f64>,
-    pub(crate) tau: f64,
+    start: [Vector3<f64>; 3],
+    target: Vector3<f64>,
+    tau: f64,
 }
 
 impl Tracking {
-    /// Offset, its rate and its acceleration at `t` (≥ `t0`).
+    /// No offset, at rest, from `t0`, with a mean delay of `tau` \[s\].
+    pub(crate) fn at_rest(t0: f64, tau: f64) -> Self {
+        Self {
+            t0,
+            start: [Vector3::zeros(); 3],
+            target: Vector3::zeros(),
+            tau,
+        }
+    }
+
+    /// From `t` on, the offset moves toward `target`, starting from its position, velocity and
+    /// acceleration at `t`.
+    pub(crate) fn retarget(&self, t: f64, target: Vector3<f64>) -> Self {
+        Self {
+            t0: t,
+            start: self.offset(t),
+            target,
+            tau: self.tau,
+        }
+    }
+
+    /// Offset, its rate and its acceleration at `t` (≥ `t0`): x = x* + q(s) e^(−s/T) with
+    /// s = t − t0, T = τ/3 and q(s) = A + B s + C s², whose coefficients match the position,
+    /// velocity and acceleration at the last retarget.
     pub(crate) fn offset(&self, t: f64) -> [Vector3<f64>; 3] {
-        let e = (-(t - self.t0).max(0.0) / self.tau).exp();
-        let d = self.start - self.target;
+        let s = (t - self.t0).max(0.0);
+        let k = 3.0 / self.tau; // 1/T
+        let e = (-s * k).exp();
+        let [x0, v0, a0] = self.start;
+        let a = x0 - self.target;
+        let b = v0 + a * k;
+        let c = (a0 + b * (2.0 * k) - a * (k * k)) * 0.5;
+        let q = a + b * s + c * (s * s);
+        let dq = b + c * (2.0 * s);
+        let ddq = c * 2.0;
         [
-            self.target + d * e,
-            -d * e / self.tau,
-            d * e / (self.tau * self.tau),
+            self.target + q * e,
+            (dq - q * k) * e,
+            (ddq - dq * (2.0 * k) + q * (k * k)) * e,
         ]
     }
 }
@@ -529,12 +568,7 @@ pub fn fly(
     let motor = MotorModel::new(lidar_kinematics::MotorLimits::default());
     let mut encoder = Encoder::new(config.encoder);
     let omega = config.motor_speed_deg.to_radians();
-    let mut track = Tracking {
-        t0: 0.0,
-        start: Vector3::zeros(),
-        target: Vector3::zeros(),
-        tau: config.tracking_lag,
-    };
+    let mut track = Tracking::at_rest(0.0, config.tracking_lag);
     let attitude = |track: &Tracking, t: f64| -> Result<UnitQuaternion<f64>, FlightError> {
         Ok(flat_attitude(&actual(traj, track, t)?[2], 0.0))
     };
@@ -653,12 +687,7 @@ pub fn fly(
         // at `max_correction`, so a lost odometry cannot fling the UAV away.
         let shift = plan - odo.state().position;
         let shift = shift * (config.max_correction / shift.norm().max(config.max_correction));
-        track = Tracking {
-            t0: t1,
-            start: now,
-            target: now + shift,
-            tau: config.tracking_lag,
-        };
+        track = track.retarget(t1, now + shift);
     }
     log.map = odo.map_points().copied().collect();
     Ok(log)
@@ -734,16 +763,27 @@ mod tests {
 
     #[test]
     fn the_tracking_offset_moves_from_its_start_to_its_target() {
-        let track = Tracking {
-            t0: 2.0,
-            start: Vector3::new(0.1, -0.2, 0.0),
-            target: Vector3::new(-0.1, 0.0, 0.05),
-            tau: 0.5,
-        };
-        let [p, v, _] = track.offset(2.0);
-        assert!((p - track.start).norm() < 1e-15);
-        assert!((v - (track.target - track.start) / 0.5).norm() < 1e-12);
-        assert!((track.offset(20.0)[0] - track.target).norm() < 1e-12);
+        let track = Tracking::at_rest(0.0, 0.5)
+            .retarget(1.0, Vector3::new(0.1, -0.2, 0.0))
+            .retarget(2.0, Vector3::new(-0.1, 0.0, 0.05));
+        // Position, velocity and acceleration are continuous across a retarget; the offset
+        // settles at the target.
+        let before = Tracking::at_rest(0.0, 0.5)
+            .retarget(1.0, Vector3::new(0.1, -0.2, 0.0))
+            .offset(2.0);
+        let after = track.offset(2.0);
+        for k in 0..3 {
+            assert!(
+                (after[k] - before[k]).norm() < 1e-12,
+                "{k}: {before:?} {after:?}"
+            );
+        }
+        assert!(
+            after[1].norm() > 1e-3,
+            "moving at the retarget: {}",
+            after[1]
+        );
+        assert!((track.offset(30.0)[0] - track.target).norm() < 1e-9);
         // Rate and acceleration match central differences.
         let (t, h) = (2.3, 1e-5);
         let [_, v, a] = track.offset(t);

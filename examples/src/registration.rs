@@ -9,8 +9,8 @@ use std::num::NonZeroUsize;
 use fu_mpc_core::least_eigen;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{
-    Isometry3, Matrix3, Matrix3x6, Matrix6, Point3, SymmetricEigen, Translation3, UnitQuaternion,
-    Vector3, Vector6,
+    Isometry3, Matrix3, Matrix6, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
+    Vector6,
 };
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
@@ -40,16 +40,6 @@ pub struct RegistrationConfig {
     /// Re-fit the planes after an update that moves a point 10 m away by more than this \[m\]
     /// (|v| + 10 |ω|); smaller updates keep the last planes. Default 0.01.
     pub reassociate: f64,
-    /// Weight of a prior that holds the position at the initial guess (the IMU's
-    /// prediction), relative to one matched point's squared residual: the prediction counts
-    /// as this many point-to-plane matches along each axis, so directions the scan
-    /// constrains with much less information stay near it. Default 0 (off): with the
-    /// prediction's error unmodelled (the velocity is a fixed-gain estimate), weights of
-    /// 30–100 helped in some runs of the large generated scenes and made others, and the
-    /// shared real scenes, worse (see the examples README).
-    pub prior_translation: f64,
-    /// Weight of the prior on the attitude, in the same units per rad²; default 0 (off).
-    pub prior_rotation: f64,
 }
 
 impl Default for RegistrationConfig {
@@ -63,8 +53,6 @@ impl Default for RegistrationConfig {
             tolerance: 1e-6,
             reassociate: 0.01,
             max_step: 0.5,
-            prior_translation: 0.0,
-            prior_rotation: 0.0,
         }
     }
 }
@@ -78,10 +66,15 @@ pub struct Registration {
     pub matched: usize,
     /// Iterations run.
     pub iterations: usize,
-    /// Eigenvalues of JᵀJ in the last iteration, increasing: a small one flags a direction
+    /// JᵀWJ of the matched points in the last iteration (Huber weights W): the information
+    /// the scan gives about the pose, in units of one point's squared residual \[m²\], for
+    /// the perturbation ξ = [δθ; δp] (a world-frame rotation about the body's position, then
+    /// a translation).
+    pub hessian: Matrix6<f64>,
+    /// Eigenvalues of [`Registration::hessian`], increasing: a small one flags a direction
     /// the geometry does not constrain (the corridor degeneracy).
     pub information: Vector6<f64>,
-    /// The unit direction ξ = [ω; v] of the smallest eigenvalue: the motion the scan
+    /// The unit direction ξ = [δθ; δp] of the smallest eigenvalue: the motion the scan
     /// constrains least.
     pub weakest: Vector6<f64>,
     /// Whether a step was larger than [`RegistrationConfig::max_step`] (the pose is then the
@@ -344,11 +337,28 @@ pub fn register(
     initial: &Isometry3<f64>,
     cfg: &RegistrationConfig,
 ) -> Registration {
+    register_with_prior(map, scan, initial, &Matrix6::zeros(), cfg)
+}
+
+/// [`register`] with a Gaussian prior on the pose about `initial`: the cost adds
+/// ½ eᵀ Λ e for the error e = [log(R R₀⁻¹); t − t₀] of the pose (R, t) from `initial`
+/// (R₀, t₀), with `prior` Λ in the units of [`Registration::hessian`] (one matched point's
+/// squared residual), so it is the maximum a posteriori pose given a prediction with
+/// information Λ (the odometry's filter passes its predicted covariance's inverse times the
+/// points' residual variance). A zero Λ gives [`register`].
+pub fn register_with_prior(
+    map: &impl Neighbours,
+    scan: &[Point3<f64>],
+    initial: &Isometry3<f64>,
+    prior: &Matrix6<f64>,
+    cfg: &RegistrationConfig,
+) -> Registration {
     let mut pose = *initial;
     let mut out = Registration {
         pose,
         matched: 0,
         iterations: 0,
+        hessian: Matrix6::zeros(),
         information: Vector6::zeros(),
         weakest: Vector6::zeros(),
         rejected: false,
@@ -357,6 +367,7 @@ pub fn register(
         .iter()
         .filter(|p| p.iter().all(|v| v.is_finite()))
         .collect();
+    let with_prior = prior.iter().any(|v| *v != 0.0) && prior.iter().all(|v| v.is_finite());
     let mut planes: Vec<Option<(Vector3<f64>, Point3<f64>)>> = vec![None; scan.len()];
     let mut refit = true;
     let mut h = Matrix6::zeros();
@@ -374,14 +385,15 @@ pub fn register(
                     *plane = fit_plane(map, &(pose * *p), cfg, nn);
                 });
         }
+        let t = pose.translation.vector;
         for (p, plane) in scan.iter().zip(&planes) {
             let x = pose * *p;
             let Some((n, c)) = *plane else {
                 continue;
             };
             let r = n.dot(&(x - c));
-            // Left perturbation ξ = [ω; v]: ∂r/∂ξ = [(x × n)ᵀ, nᵀ].
-            let xn = x.coords.cross(&n);
+            // ξ = [δθ; δp] moves x to exp(δθ)(x − t) + t + δp: ∂r/∂ξ = [((x − t) × n)ᵀ, nᵀ].
+            let xn = (x.coords - t).cross(&n);
             let j = Vector6::new(xn.x, xn.y, xn.z, n.x, n.y, n.z);
             let w = if r.abs() <= cfg.huber {
                 1.0
@@ -394,33 +406,20 @@ pub fn register(
         }
         out.iterations = it + 1;
         out.matched = matched;
-        if matched < 6 {
+        if matched < 6 && !with_prior {
             break;
         }
-        // The prior holding the pose at the initial guess, the IMU's prediction (a MAP
-        // estimate with the prediction as the mean): under the left perturbation ξ = [ω; v]
-        // the position t moves by ω × t + v and the attitude by ω. `h` itself stays the
-        // points' information.
-        let (wt, wr) = (cfg.prior_translation, cfg.prior_rotation);
+        // The prior's residual e = [log(R R₀⁻¹); t − t₀], with ∂e/∂ξ ≈ I for this ξ.
         let (mut a, mut g) = (h, g);
-        if wt > 0.0 || wr > 0.0 {
-            let t = pose.translation.vector;
-            let rt = t - initial.translation.vector;
+        if with_prior {
             let rr = (pose.rotation * initial.rotation.inverse()).scaled_axis();
-            let mut jt = Matrix3x6::zeros();
-            jt.fixed_view_mut::<3, 3>(0, 0)
-                .copy_from(&(-t.cross_matrix()));
-            jt.fixed_view_mut::<3, 3>(0, 3)
-                .copy_from(&Matrix3::identity());
-            let mut jr = Matrix3x6::zeros();
-            jr.fixed_view_mut::<3, 3>(0, 0)
-                .copy_from(&Matrix3::identity());
-            a += wt * jt.transpose() * jt + wr * jr.transpose() * jr;
-            g += wt * jt.transpose() * rt + wr * jr.transpose() * rr;
+            let rt = t - initial.translation.vector;
+            a += prior;
+            g += prior * Vector6::new(rr.x, rr.y, rr.z, rt.x, rt.y, rt.z);
         }
         // A little Levenberg damping keeps the step defined when the geometry leaves a
-        // direction unconstrained (a corridor's axis) and the prior is off: that direction
-        // then stays at the prediction while the others are corrected.
+        // direction unconstrained (a corridor's axis) and there is no prior: that direction
+        // then stays at the initial guess while the others are corrected.
         let damping = 1e-9 * a.trace().max(f64::MIN_POSITIVE);
         let Some(chol) = (a + Matrix6::identity() * damping).cholesky() else {
             break;
@@ -433,16 +432,16 @@ pub fn register(
             out.rejected = true;
             break;
         }
-        let delta = Isometry3::from_parts(
-            Translation3::from(v),
-            UnitQuaternion::from_scaled_axis(omega),
+        pose = Isometry3::from_parts(
+            Translation3::from(t + v),
+            UnitQuaternion::from_scaled_axis(omega) * pose.rotation,
         );
-        pose = delta * pose;
         if omega.norm() + v.norm() < cfg.tolerance {
             break;
         }
         refit = v.norm() + 10.0 * omega.norm() > cfg.reassociate;
     }
+    out.hessian = h;
     let eig = SymmetricEigen::new(h);
     let mut order = [0usize, 1, 2, 3, 4, 5];
     order.sort_by(|a, b| eig.eigenvalues[*a].total_cmp(&eig.eigenvalues[*b]));
@@ -501,12 +500,10 @@ mod tests {
             Translation3::new(0.15, -0.1, 0.05),
             UnitQuaternion::from_euler_angles(0.0, 0.02, 0.06),
         ) * truth;
-        // The registration alone, without the prior that would hold it near a guess this far
-        // off (a 0.1 s IMU prediction is good to millimetres).
+        // The registration alone, without a prior that would hold it near a guess this far off
+        // (a 0.1 s IMU prediction is good to millimetres).
         let cfg = RegistrationConfig {
             iterations: 30,
-            prior_translation: 0.0,
-            prior_rotation: 0.0,
             ..Default::default()
         };
         // The exact k-d tree neighbours and the voxel-hashed approximate ones.
@@ -583,10 +580,11 @@ mod tests {
             &pose,
             &RegistrationConfig::default(),
         );
-        // The weakest direction is a translation along the corridor.
+        // The weakest direction is a translation along the corridor; only the rays that reach
+        // the far ends, 30 m away, constrain it.
         assert!(r.weakest[3].abs() > 0.99, "{:?}", r.weakest);
         assert!(
-            r.information[0] < 1e-4 * r.information[5],
+            r.information[0] < 1e-3 * r.information[5],
             "{:?}",
             r.information
         );
@@ -645,30 +643,32 @@ mod tests {
             .map(|p| pose.inverse() * p)
             .collect();
         scan.extend(patch(5.0, 0.25, 5).map(|p| pose.inverse() * p));
-        let shift = |cfg: &RegistrationConfig| {
-            let r = map.register(&scan, &pose, cfg);
+        let cfg = RegistrationConfig::default();
+        let shift = |prior: &Matrix6<f64>| {
+            let r = register_with_prior(&map, &scan, &pose, prior, &cfg);
             (r.pose.translation.vector - pose.translation.vector, r)
         };
-        let off = RegistrationConfig {
-            prior_translation: 0.0,
-            prior_rotation: 0.0,
-            ..RegistrationConfig::default()
-        };
-        let (free, r) = shift(&off);
+        let (free, r) = shift(&Matrix6::zeros());
         assert!(
             free.x > 0.15,
             "without the prior the patch drags x: {free:?} {r:?}"
         );
         // With it, x moves by about 0.2 · I / (I + w) for the patch's information I along x
         // (about 20 here) and the prior's weight w (30): less than half as far.
-        let (d, r) = shift(&RegistrationConfig {
-            prior_translation: 30.0,
-            prior_rotation: 1e3,
-            ..RegistrationConfig::default()
-        });
+        let prior = Matrix6::from_diagonal(&Vector6::new(1e3, 1e3, 1e3, 30.0, 30.0, 30.0));
+        let (d, r) = shift(&prior);
         assert!(
             d.x > 0.0 && d.x < 0.5 * free.x,
             "the prior holds x: {d:?} {r:?}"
+        );
+        // The same pose as the closed form of one linear step: with the planes fixed, x solves
+        // (I + w) x = I · 0.2 along the axis.
+        let along = r.hessian[(3, 3)];
+        assert!(
+            (d.x - 0.2 * along / (along + 30.0)).abs() < 0.02,
+            "{} vs {}",
+            d.x,
+            0.2 * along / (along + 30.0)
         );
         assert!(d.y.abs() < 0.01 && d.z.abs() < 0.01, "{d:?}");
     }
