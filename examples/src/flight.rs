@@ -7,7 +7,8 @@
 //! acceleration limits. [`fly`] runs the sensors and the odometry along it. The UAV tracks
 //! the plan in the *estimated* frame (its yaw fixed at 0): after each odometry update the
 //! position controller shifts its target by plan − estimate, and the true position follows
-//! with a first-order lag, so the true path differs from the plan by the odometry's error.
+//! through a smooth third-order lag (velocity, acceleration and attitude continuous, so the
+//! IMU sees the motion), so the true path differs from the plan by the odometry's error.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
