@@ -322,9 +322,7 @@ impl Odometry {
             map_points: self.map.len(),
         })
     }
-}
 
-impl Odometry {
     /// The filter's update: the registration with the prediction as its prior, then the
     /// velocity and the covariance from the joint posterior.
     fn update(&mut self, scan: &[Point3<f64>], predicted: &Isometry3<f64>) -> Registration {
@@ -332,16 +330,13 @@ impl Odometry {
         // The prior on [δθ; δp]: the inverse of their predicted covariance, in the
         // registration's units (one point's squared residual).
         let pxx: Matrix6<f64> = self.covariance.fixed_view::<6, 6>(0, 0).into_owned();
-        let Some(pxx_inv) = pxx.cholesky().map(|c| c.inverse()) else {
-            // A broken covariance: restart it rather than trust it.
-            self.covariance = Covariance::identity() * (INITIAL_STD * INITIAL_STD);
-            return register_with_prior(
-                &self.map,
-                scan,
-                predicted,
-                &Matrix6::zeros(),
-                &self.config.registration,
-            );
+        let pxx_inv = match pxx.cholesky() {
+            Some(c) => c.inverse(),
+            None => {
+                // A broken covariance: restart it rather than trust it.
+                self.covariance = Covariance::identity() * (INITIAL_STD * INITIAL_STD);
+                Matrix6::identity() / (INITIAL_STD * INITIAL_STD)
+            }
         };
         let mut r = register_with_prior(
             &self.map,

@@ -345,7 +345,8 @@ pub fn register(
 /// (R₀, t₀), with `prior` Λ in the units of [`Registration::hessian`] (one matched point's
 /// squared residual), so it is the maximum a posteriori pose given a prediction with
 /// information Λ (the odometry's filter passes its predicted covariance's inverse times the
-/// points' residual variance). A zero Λ gives [`register`].
+/// points' residual variance). A zero Λ gives [`register`], and so does a Λ with a NaN or
+/// infinite entry (ignored rather than allowed to poison the pose).
 pub fn register_with_prior(
     map: &impl Neighbours,
     scan: &[Point3<f64>],
@@ -649,6 +650,8 @@ mod tests {
             (r.pose.translation.vector - pose.translation.vector, r)
         };
         let (free, r) = shift(&Matrix6::zeros());
+        // A non-finite prior is ignored.
+        assert_eq!(shift(&Matrix6::from_element(f64::NAN)).0, free);
         assert!(
             free.x > 0.15,
             "without the prior the patch drags x: {free:?} {r:?}"

@@ -424,11 +424,10 @@ impl FuMpc {
         }
         let (alpha, beta) = (c.alpha, c.beta);
         for (table, j) in self.combined.iter_mut().zip(&self.surrogates[1..]) {
-            let values = table.values_mut();
-            for (i, x) in values.iter_mut().enumerate() {
+            for (i, (x, jv)) in table.values_mut().iter_mut().zip(j.values()).enumerate() {
                 let mut v = 0.0;
                 if alpha > 0.0 {
-                    v += alpha * j.values()[i];
+                    v += alpha * jv;
                 }
                 if let (Some(f), true) = (fisher, beta > 0.0) {
                     v += beta * f.values()[i];
@@ -457,29 +456,18 @@ impl FuMpc {
         let mut cost = 0.0;
         let mut smooth = 0.0;
         let mut prev = u.first().copied().unwrap_or(0.0);
-        match slopes {
-            Some(s) => {
-                for ((x, table), slope) in u.iter().zip(&self.combined).zip(s.iter_mut()) {
-                    w += x * c.dt; // eq. (11), inside the limits
-                    th += w * c.dt; // eq. (12)
-                    let (v, d) = table.eval(th);
-                    cost += v;
-                    *slope = d;
-                    let du = x - prev;
-                    smooth += du * du;
-                    prev = *x;
-                }
+        let mut slopes = slopes;
+        for (k, (x, table)) in u.iter().zip(&self.combined).enumerate() {
+            w += x * c.dt; // eq. (11), inside the limits
+            th += w * c.dt; // eq. (12)
+            let (v, d) = table.eval(th);
+            cost += v;
+            if let Some(s) = slopes.as_deref_mut() {
+                s[k] = d;
             }
-            None => {
-                for (x, table) in u.iter().zip(&self.combined) {
-                    w += x * c.dt;
-                    th += w * c.dt;
-                    cost += table.value(th);
-                    let du = x - prev;
-                    smooth += du * du;
-                    prev = *x;
-                }
-            }
+            let du = x - prev;
+            smooth += du * du;
+            prev = *x;
         }
         cost + c.gamma * smooth
     }
