@@ -342,12 +342,12 @@ impl Frontiers {
 
     /// Groups the pool (distinct frontier cells without a live cluster) into 26-connected
     /// regions, splits them, and records the clusters.
-    fn grow(&mut self, map: &VoxelMap, mut seeds: Vec<u64>) -> Vec<ClusterId> {
+    fn grow(&mut self, map: &VoxelMap, seeds: Vec<u64>) -> Vec<ClusterId> {
         let grid = map.grid();
-        seeds.sort_unstable();
         let mut pool = CellSet::new(&seeds);
         let mut added = Vec::new();
         let mut stack = Vec::new();
+        let mut parts = Vec::new();
         for seed in seeds {
             let seed = Cell::from_key(seed);
             if !pool.remove(seed) {
@@ -360,16 +360,19 @@ impl Frontiers {
                 pool.take_neighbours(c, &mut region);
                 stack.extend_from_slice(&region[before..]);
             }
-            let mut parts = Vec::new();
-            split(grid, region, self.config.max_cluster_radius, &mut parts);
-            for mut cells in parts {
-                cells.sort_unstable();
+            parts.clear();
+            let radius = self.config.max_cluster_radius / grid.resolution();
+            split(&mut region, 0, radius, &mut parts);
+            for (range, moments) in &parts {
+                let mut keys: Vec<u64> = region[range.clone()].iter().map(sort_key).collect();
+                keys.sort_unstable();
+                let cells: Vec<Cell> = keys.into_iter().map(from_sort_key).collect();
                 let id = ClusterId(self.next_id);
                 self.next_id += 1;
                 for c in &cells {
                     self.owner.insert(c.key(), id);
                 }
-                self.clusters.insert(id, shape(map, id, cells));
+                self.clusters.insert(id, shape(map, id, cells, moments));
                 added.push(id);
             }
         }
@@ -529,20 +532,73 @@ impl CellSet {
     }
 }
 
-/// Mean and covariance of the cell centres.
-fn moments(grid: &Grid, cells: &[Cell]) -> (Point3<f64>, Matrix3<f64>) {
-    // Cell counts are far below 2^53.
-    #[allow(clippy::cast_precision_loss)]
-    let n = cells.len().max(1) as f64;
-    let mean = cells
-        .iter()
-        .fold(Vector3::zeros(), |s, c| s + grid.center(*c).coords)
-        / n;
-    let cov = cells.iter().fold(Matrix3::zeros(), |s, c| {
-        let d = grid.center(*c).coords - mean;
-        s + d * d.transpose()
-    }) / n;
-    (Point3::from(mean), cov)
+/// Mean and covariance of a set of cell centres, in cell units from the centre of `base`.
+#[derive(Debug, Clone, Copy)]
+struct Moments {
+    base: Cell,
+    mean: Vector3<f64>,
+    cov: Matrix3<f64>,
+}
+
+impl Moments {
+    /// The moments of `cells` (not empty), in one pass over exact integer offsets.
+    fn of(cells: &[Cell]) -> Self {
+        let base = cells.first().copied().unwrap_or(Cell::new(0, 0, 0));
+        let mut s = [0.0f64; 3];
+        let mut ss = [0.0f64; 6];
+        for c in cells {
+            let d = offset(base, *c);
+            s = [s[0] + d[0], s[1] + d[1], s[2] + d[2]];
+            ss[0] += d[0] * d[0];
+            ss[1] += d[0] * d[1];
+            ss[2] += d[0] * d[2];
+            ss[3] += d[1] * d[1];
+            ss[4] += d[1] * d[2];
+            ss[5] += d[2] * d[2];
+        }
+        // Cell counts are far below 2^53.
+        #[allow(clippy::cast_precision_loss)]
+        let n = cells.len().max(1) as f64;
+        let m = Vector3::new(s[0], s[1], s[2]) / n;
+        // E[d dᵀ] − m mᵀ, with offsets from a member cell so the subtraction loses little.
+        let e = |k: usize| ss[k] / n;
+        let cov = Matrix3::new(
+            e(0) - m.x * m.x,
+            e(1) - m.x * m.y,
+            e(2) - m.x * m.z,
+            e(1) - m.x * m.y,
+            e(3) - m.y * m.y,
+            e(4) - m.y * m.z,
+            e(2) - m.x * m.z,
+            e(4) - m.y * m.z,
+            e(5) - m.z * m.z,
+        );
+        Self { base, mean: m, cov }
+    }
+
+    /// The largest squared distance from the mean to a cell centre of `cells` \[cells²\].
+    fn radius2(&self, cells: &[Cell]) -> f64 {
+        cells
+            .iter()
+            .map(|c| (Vector3::from(offset(self.base, *c)) - self.mean).norm_squared())
+            .fold(0.0, f64::max)
+    }
+
+    /// The mean as a world point and the covariance in m².
+    fn world(&self, grid: &Grid) -> (Point3<f64>, Matrix3<f64>) {
+        let r = grid.resolution();
+        (grid.center(self.base) + self.mean * r, self.cov * (r * r))
+    }
+}
+
+/// The offset from `base` to `c` in cells, exact.
+#[inline]
+fn offset(base: Cell, c: Cell) -> [f64; 3] {
+    [
+        f64::from(c.x) - f64::from(base.x),
+        f64::from(c.y) - f64::from(base.y),
+        f64::from(c.z) - f64::from(base.z),
+    ]
 }
 
 /// Principal axes (columns) and variances, by decreasing variance.
@@ -555,34 +611,59 @@ fn principal(cov: &Matrix3<f64>) -> (Matrix3<f64>, Vector3<f64>) {
     (axes, vars)
 }
 
-/// Splits `cells` along the principal axis until every part has radius ≤ `max_radius`.
-fn split(grid: &Grid, cells: Vec<Cell>, max_radius: f64, out: &mut Vec<Vec<Cell>>) {
-    let (mean, cov) = moments(grid, &cells);
-    let radius = cells
-        .iter()
-        .map(|c| (grid.center(*c) - mean).norm())
-        .fold(0.0, f64::max);
-    if radius <= max_radius || cells.len() < 2 {
-        out.push(cells);
+/// Splits `cells` in place along the principal axis until every part has radius ≤
+/// `max_radius` (in cells); appends each part as its range in `cells` (offset by `start`) with
+/// its moments.
+fn split(
+    cells: &mut [Cell],
+    start: usize,
+    max_radius: f64,
+    out: &mut Vec<(core::ops::Range<usize>, Moments)>,
+) {
+    let m = Moments::of(cells);
+    if cells.len() < 2 || m.radius2(cells) <= max_radius * max_radius {
+        out.push((start..start + cells.len(), m));
         return;
     }
-    let (axes, _) = principal(&cov);
+    let (axes, _) = principal(&m.cov);
     let axis = axes.column(0).into_owned();
-    let (a, b): (Vec<Cell>, Vec<Cell>) = cells
-        .iter()
-        .partition(|c| (grid.center(**c) - mean).dot(&axis) >= 0.0);
-    if a.is_empty() || b.is_empty() {
-        out.push(cells);
+    let ahead = |c: &Cell| (Vector3::from(offset(m.base, *c)) - m.mean).dot(&axis) >= 0.0;
+    // In-place partition: the cells ahead of the mean first.
+    let mut k = 0;
+    for i in 0..cells.len() {
+        if ahead(&cells[i]) {
+            cells.swap(i, k);
+            k += 1;
+        }
+    }
+    if k == 0 || k == cells.len() {
+        out.push((start..start + cells.len(), m));
         return;
     }
-    split(grid, a, max_radius, out);
-    split(grid, b, max_radius, out);
+    let (a, b) = cells.split_at_mut(k);
+    split(a, start, max_radius, out);
+    split(b, start + k, max_radius, out);
+}
+
+/// The order of [`Cell`]'s `Ord` (x, then y, then z) as one integer, which sorts faster.
+#[inline]
+fn sort_key(c: &Cell) -> u64 {
+    (u64::from(c.x) << 42) | (u64::from(c.y) << 21) | u64::from(c.z)
+}
+
+/// Inverse of [`sort_key`].
+#[inline]
+fn from_sort_key(k: u64) -> Cell {
+    let m = (1u64 << 21) - 1;
+    // Each field has at most 21 bits, so the casts are exact.
+    #[allow(clippy::cast_possible_truncation)]
+    Cell::new((k >> 42) as u32, ((k >> 21) & m) as u32, (k & m) as u32)
 }
 
 /// The shape of a cluster: centre, axes, normal, bounding box.
-fn shape(map: &VoxelMap, id: ClusterId, cells: Vec<Cell>) -> Cluster {
+fn shape(map: &VoxelMap, id: ClusterId, cells: Vec<Cell>, moments: &Moments) -> Cluster {
     let grid = map.grid();
-    let (center, cov) = moments(grid, &cells);
+    let (center, cov) = moments.world(grid);
     let (axes, variances) = principal(&cov);
     // Mean direction from unknown face neighbours to free ones.
     let mut g = Vector3::zeros();
@@ -632,6 +713,39 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        /// The one-pass moments equal the two-pass mean and covariance of the cell centres.
+        #[test]
+        fn moments_match_two_passes(
+            cells in proptest::collection::vec((0u32..2000, 0u32..2000, 0u32..300), 1..60),
+        ) {
+            let b = Bounds::new(Point3::new(-5.0, 0.0, 1.0), Point3::new(395.0, 400.0, 61.0)).unwrap();
+            let grid = Grid::new(b, 0.2).unwrap();
+            let cells: Vec<Cell> = cells.into_iter().map(|(x, y, z)| Cell::new(x, y, z)).collect();
+            let n = cells.len() as f64;
+            let mean = cells.iter().fold(Vector3::zeros(), |s, c| s + grid.center(*c).coords) / n;
+            let cov = cells.iter().fold(Matrix3::zeros(), |s, c| {
+                let d = grid.center(*c).coords - mean;
+                s + d * d.transpose()
+            }) / n;
+            let (m, c) = Moments::of(&cells).world(&grid);
+            prop_assert!((m.coords - mean).norm() < 1e-9);
+            prop_assert!((c - cov).norm() < 1e-9 * (1.0 + cov.norm()));
+            let r2 = Moments::of(&cells).radius2(&cells) * 0.04;
+            let r = cells.iter().map(|c| (grid.center(*c).coords - mean).norm()).fold(0.0, f64::max);
+            prop_assert!((r2.sqrt() - r).abs() < 1e-9);
+        }
+
+        /// The packed sort key orders cells as `Cell`'s `Ord` does, and round-trips.
+        #[test]
+        fn sort_keys_order_like_cells(
+            a in (0u32..1 << 20, 0u32..1 << 20, 0u32..1 << 20),
+            b in (0u32..1 << 20, 0u32..1 << 20, 0u32..1 << 20),
+        ) {
+            let (a, b) = (Cell::new(a.0, a.1, a.2), Cell::new(b.0, b.1, b.2));
+            prop_assert_eq!(sort_key(&a).cmp(&sort_key(&b)), a.cmp(&b));
+            prop_assert_eq!(from_sort_key(sort_key(&a)), a);
+        }
+
         /// The bitset and the hash set agree with a plain set on insertions, removals and
         /// neighbour takes.
         #[test]

@@ -172,8 +172,9 @@ impl Grid {
     #[inline]
     pub(crate) fn clamp_cell(&self, g: Vector3<f64>) -> Cell {
         let c = |k: usize| {
-            // Clamped into [0, dims − 1], so the cast is exact.
-            g[k].floor().clamp(0.0, f64::from(self.dims[k] - 1)) as u32
+            // Clamping first and truncating gives the floor inside [0, dims − 1] without a call
+            // to libm's floor (NaN becomes 0).
+            g[k].clamp(0.0, f64::from(self.dims[k] - 1)) as u32
         };
         Cell::new(c(0), c(1), c(2))
     }

@@ -230,8 +230,8 @@ pub struct VoxelMap {
     block_dims: [u32; 3],
     /// Block slot per directory entry, or `NO_BLOCK`.
     directory: Vec<u32>,
-    /// `BLOCK_CELLS` log-odds per allocated block.
-    cells: Vec<i8>,
+    /// The log-odds of each allocated block's cells.
+    cells: Vec<[i8; BLOCK_CELLS]>,
     /// Known and occupied cells per allocated block.
     known: Vec<u16>,
     occupied: Vec<u16>,
@@ -337,7 +337,7 @@ impl VoxelMap {
             return CellState::Unknown;
         }
         match self.slot(c) {
-            Some(s) => Self::state_of(self.cells[s.block * BLOCK_CELLS + s.index]),
+            Some(s) => Self::state_of(self.cells[s.block][s.index]),
             None => CellState::Unknown,
         }
     }
@@ -355,7 +355,7 @@ impl VoxelMap {
             return None;
         }
         let s = self.slot(c)?;
-        let l = f64::from(self.cells[s.block * BLOCK_CELLS + s.index]) / SCALE;
+        let l = f64::from(self.cells[s.block][s.index]) / SCALE;
         Some(1.0 / (1.0 + (-l).exp()))
     }
 
@@ -378,7 +378,7 @@ impl VoxelMap {
     /// the block directory, per-block counters, the per-frame marks and the ray buffer.
     pub fn memory_bytes(&self) -> usize {
         use core::mem::size_of;
-        self.cells.capacity() * size_of::<i8>()
+        self.cells.capacity() * size_of::<[i8; BLOCK_CELLS]>()
             + self.directory.capacity() * size_of::<u32>()
             + (self.known.capacity() + self.occupied.capacity()) * size_of::<u16>()
             + self.epoch.capacity() * size_of::<u32>()
@@ -393,14 +393,13 @@ impl VoxelMap {
         {
             self.directory[dir] = b as u32;
         }
-        if self.cells.capacity() < self.cells.len() + BLOCK_CELLS {
+        if self.cells.capacity() == self.cells.len() {
             // Grow by a quarter rather than double: cell storage dominates the map's memory.
-            let more = (self.cells.len() / 4).max(16 * BLOCK_CELLS);
+            let more = (self.cells.len() / 4).max(16);
             self.cells.reserve_exact(more);
-            self.marks.reserve_exact(more / BLOCK_CELLS);
+            self.marks.reserve_exact(more);
         }
-        self.cells
-            .extend(core::iter::repeat_n(UNKNOWN, BLOCK_CELLS));
+        self.cells.push([UNKNOWN; BLOCK_CELLS]);
         self.known.push(0);
         self.occupied.push(0);
         self.epoch.push(0);
@@ -426,7 +425,7 @@ impl VoxelMap {
     /// Applies one hit or miss to a cell of block `b`; returns the change, if any.
     #[inline(always)]
     fn apply(&mut self, b: usize, index: usize, hit: bool) -> Option<(CellState, CellState)> {
-        let v = &mut self.cells[b * BLOCK_CELLS + index];
+        let v = &mut self.cells[b][index];
         let old = *v;
         let new = match (old == UNKNOWN, hit) {
             (true, true) => self.hit.min(self.hi),
@@ -594,7 +593,7 @@ impl VoxelMap {
         let mut w = BlockWalk::new(self, from, &to);
         let block = |dir: usize| match self.directory[dir] {
             NO_BLOCK => None,
-            b => Some(b as usize * BLOCK_CELLS),
+            b => Some(b as usize),
         };
         let mut base = block(w.dir);
         // The first cell (the viewpoint's) is not tested; the last one is the target.
@@ -606,7 +605,7 @@ impl VoxelMap {
             if c == target {
                 break;
             }
-            let v = base.map_or(UNKNOWN, |b| self.cells[b + Self::index_in_block(c)]);
+            let v = base.map_or(UNKNOWN, |b| self.cells[b][Self::index_in_block(c)]);
             let blocked = if v == UNKNOWN {
                 unknown_occludes
             } else {
@@ -666,7 +665,7 @@ impl VoxelMap {
                     if self.occupied[s.block] == 0 {
                         continue;
                     }
-                    let base = s.block * BLOCK_CELLS;
+                    let cells = &self.cells[s.block];
                     let r = |b: u32, k: usize| {
                         let start = (b << BLOCK_BITS).max(lo[k]);
                         let end = ((b << BLOCK_BITS) + BLOCK_MASK).min(hi[k]);
@@ -676,7 +675,7 @@ impl VoxelMap {
                         for y in r(by, 1) {
                             for x in r(bx, 0) {
                                 let c = Cell::new(x, y, z);
-                                let v = self.cells[base + Self::index_in_block(c)];
+                                let v = cells[Self::index_in_block(c)];
                                 if Self::state_of(v) != CellState::Occupied {
                                     continue;
                                 }
@@ -708,9 +707,7 @@ impl VoxelMap {
                 ((dir / bx as usize) % by as usize) as u32,
                 (dir / (bx as usize * by as usize)) as u32,
             );
-            let base = b as usize * BLOCK_CELLS;
-            for i in 0..BLOCK_CELLS {
-                let v = self.cells[base + i];
+            for (i, &v) in self.cells[b as usize].iter().enumerate() {
                 if v == UNKNOWN {
                     continue;
                 }
