@@ -9,14 +9,18 @@
 //! least, continued while the best tour still improves), tuned for TSPLIB optima; `bound` is
 //! the Held–Karp ascent and the α-nearness candidates alone, the fixed part of every solve.
 //!
+//! `graph_2000_nodes` builds a topological graph of 2,000 nodes (random in a 100 m × 40 m ×
+//! 8 m box, a third of them at one height as sampled viewpoints are) with a 6 m connection
+//! radius and free space everywhere: the neighbour search and the edge bookkeeping alone.
+//!
 //! Run with `cargo bench -p fu-mpc-benches --bench topo_tsp`.
 
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use topo_tsp::{
-    BoundConfig, CostMatrix, SolverConfig, alpha_candidates, held_karp_bound, solve_open,
-    transition_cost,
+    BoundConfig, CostMatrix, SolverConfig, TopoGraph, alpha_candidates, held_karp_bound,
+    solve_open, transition_cost,
 };
 
 fn instance(n: usize, seed: u64) -> Option<CostMatrix> {
@@ -61,5 +65,31 @@ fn bench_open_tours(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_open_tours);
+fn bench_graph(c: &mut Criterion) {
+    let mut s = 7u64;
+    let mut next = move || {
+        s = s
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let pts: Vec<[f64; 3]> = (0..2000)
+        .map(|i| {
+            let z = if i % 3 == 0 { 2.5 } else { 8.0 * next() };
+            [100.0 * next(), 40.0 * next(), z]
+        })
+        .collect();
+    let free = |_: &[f64; 3], _: &[f64; 3]| true;
+    c.bench_function("graph_2000_nodes", |b| {
+        b.iter(|| {
+            let mut g = TopoGraph::new();
+            for p in &pts {
+                black_box(g.add_node(*p, 6.0, &free).ok());
+            }
+            black_box(g.len())
+        });
+    });
+}
+
+criterion_group!(benches, bench_open_tours, bench_graph);
 criterion_main!(benches);

@@ -3,7 +3,7 @@
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use kiddo::{MutableKdTree, SquaredEuclidean};
+use std::collections::HashMap;
 
 use crate::error::{Result, TspError};
 
@@ -32,7 +32,8 @@ fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 /// the viewpoints), with A* and Dijkstra shortest paths by edge length.
 ///
 /// New nodes connect to every existing node within a radius whose segment the caller's
-/// [`FreeSpace`] check accepts; neighbours are found with a k-d tree (kiddo).
+/// [`FreeSpace`] check accepts; neighbours are found with a spatial hash whose cell edge is the
+/// first positive connection radius used.
 ///
 /// # Example
 /// ```
@@ -48,10 +49,11 @@ fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 /// assert!((path.length - 4.0).abs() < 1e-12);
 /// # Ok(()) }
 /// ```
+#[derive(Clone)]
 pub struct TopoGraph {
     positions: Vec<[f64; 3]>,
     adjacency: Vec<Vec<(NodeId, f64)>>,
-    tree: MutableKdTree<f64, 3>,
+    index: SpatialHash,
     permanent: usize,
 }
 
@@ -65,23 +67,6 @@ impl core::fmt::Debug for TopoGraph {
                 &(self.adjacency.iter().map(Vec::len).sum::<usize>() / 2),
             )
             .finish()
-    }
-}
-
-impl Clone for TopoGraph {
-    /// Clones the graph; the spatial index (not clonable itself) is rebuilt from the positions.
-    fn clone(&self) -> Self {
-        let mut tree = MutableKdTree::default();
-        for (id, p) in self.positions.iter().enumerate() {
-            // Every id fitted u32 and every position was accepted when first added.
-            let _ = tree.add(p, id as u32);
-        }
-        Self {
-            positions: self.positions.clone(),
-            adjacency: self.adjacency.clone(),
-            tree,
-            permanent: self.permanent,
-        }
     }
 }
 
@@ -160,7 +145,7 @@ impl TopoGraph {
         Self {
             positions: Vec::new(),
             adjacency: Vec::new(),
-            tree: MutableKdTree::default(),
+            index: SpatialHash::default(),
             permanent: 0,
         }
     }
@@ -216,17 +201,11 @@ impl TopoGraph {
             });
         }
         let id = self.positions.len();
-        let mut near: Vec<usize> = self
-            .tree
-            .query(&p)
-            .within::<SquaredEuclidean<f64>>(radius * radius)
-            .unsorted()
-            .execute()
-            .into_iter()
-            .map(|n| n.item as usize)
-            .collect();
-        // Sorted by id so the graph does not depend on the tree's internal order.
-        near.sort_unstable();
+        let item = u32::try_from(id).map_err(|_| TspError::InvalidConfig {
+            what: "graph size",
+            reason: "at most 2^32 nodes",
+        })?;
+        let near = self.index.within(&self.positions, &p, radius);
         self.positions.push(p);
         self.adjacency.push(Vec::new());
         for other in near {
@@ -237,16 +216,7 @@ impl TopoGraph {
                 self.adjacency[other].push((id, len));
             }
         }
-        let item = u32::try_from(id).map_err(|_| TspError::InvalidConfig {
-            what: "graph size",
-            reason: "at most 2^32 nodes",
-        })?;
-        self.tree
-            .add(&p, item)
-            .map_err(|_| TspError::InvalidConfig {
-                what: "node position",
-                reason: "rejected by the spatial index",
-            })?;
+        self.index.insert(&p, item, radius);
         Ok(id)
     }
 
@@ -286,7 +256,8 @@ impl TopoGraph {
         for id in keep..self.positions.len() {
             let p = self.positions[id];
             // Ids of temporary nodes were checked to fit u32 when they were added.
-            self.tree.remove(&p, id as u32);
+            #[allow(clippy::cast_possible_truncation)]
+            self.index.remove(&p, id as u32);
         }
         self.positions.truncate(keep);
         self.adjacency.truncate(keep);
@@ -391,6 +362,87 @@ impl TopoGraph {
             }
         }
         Ok(None)
+    }
+}
+
+/// Node ids bucketed in a grid of cubic cells, for radius queries.
+///
+/// A k-d tree that splits buckets by depth cannot split one whose points share the coordinate
+/// of the split axis (viewpoints sampled at one height do); a hash grid has no such case.
+#[derive(Debug, Clone, Default)]
+struct SpatialHash {
+    /// Cell edge \[m\]: the first positive radius of an insertion; 0 until then.
+    cell: f64,
+    buckets: HashMap<[i64; 3], Vec<u32>>,
+}
+
+impl SpatialHash {
+    fn key(&self, p: &[f64; 3]) -> [i64; 3] {
+        // Saturating float-to-int casts: far-away points share the border buckets, and
+        // queries check distances exactly, so that stays correct.
+        #[allow(clippy::cast_possible_truncation)]
+        p.map(|v| (v / self.cell).floor() as i64)
+    }
+
+    fn insert(&mut self, p: &[f64; 3], item: u32, radius: f64) {
+        if self.cell == 0.0 {
+            if radius > 0.0 {
+                self.cell = radius;
+            } else {
+                // Radius-0 insertions find no neighbours: any cell edge works until a real
+                // radius comes.
+                self.cell = 1.0;
+            }
+        }
+        let key = self.key(p);
+        self.buckets.entry(key).or_default().push(item);
+    }
+
+    fn remove(&mut self, p: &[f64; 3], item: u32) {
+        if self.cell == 0.0 {
+            return;
+        }
+        let key = self.key(p);
+        if let Some(b) = self.buckets.get_mut(&key) {
+            b.retain(|&i| i != item);
+            if b.is_empty() {
+                self.buckets.remove(&key);
+            }
+        }
+    }
+
+    /// The ids of `positions` within `radius` of `p` (distance ≤ radius), sorted.
+    fn within(&self, positions: &[[f64; 3]], p: &[f64; 3], radius: f64) -> Vec<usize> {
+        let r2 = radius * radius;
+        let close = |q: &[f64; 3]| {
+            (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2) <= r2
+        };
+        let mut out: Vec<usize> = Vec::new();
+        if self.cell > 0.0 {
+            let lo = self.key(&p.map(|v| v - radius));
+            let hi = self.key(&p.map(|v| v + radius));
+            let span = |k: usize| u128::from(hi[k].abs_diff(lo[k])) + 1;
+            let cells = span(0).saturating_mul(span(1)).saturating_mul(span(2));
+            // Fewer cells than nodes: visit the buckets; otherwise a plain scan is cheaper.
+            if cells <= positions.len() as u128 {
+                for x in lo[0]..=hi[0] {
+                    for y in lo[1]..=hi[1] {
+                        for z in lo[2]..=hi[2] {
+                            for &i in self.buckets.get(&[x, y, z]).into_iter().flatten() {
+                                let i = i as usize;
+                                if close(&positions[i]) {
+                                    out.push(i);
+                                }
+                            }
+                        }
+                    }
+                }
+                out.sort_unstable();
+                return out;
+            }
+        }
+        out.extend((0..positions.len()).filter(|&i| close(&positions[i])));
+        out
     }
 }
 
@@ -507,5 +559,75 @@ mod tests {
         let b = g.add_node([10.0, 0.0, 0.0], 1.0, &free).unwrap();
         assert_eq!(g.shortest_path(a, b).unwrap(), None);
         assert_eq!(g.shortest_paths_from(a).unwrap().path_to(b), None);
+    }
+
+    /// The neighbours of every node by brute force: every other node within `radius`.
+    fn brute_neighbours(g: &TopoGraph, radius: f64) -> Vec<Vec<NodeId>> {
+        (0..g.len())
+            .map(|i| {
+                let p = g.position(i).unwrap();
+                (0..g.len())
+                    .filter(|&j| j != i && dist(&p, &g.position(j).unwrap()) <= radius)
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn neighbour_ids(g: &TopoGraph, i: NodeId) -> Vec<NodeId> {
+        let mut v: Vec<NodeId> = g.neighbors(i).unwrap().iter().map(|e| e.0).collect();
+        v.sort_unstable();
+        v
+    }
+
+    #[test]
+    fn nodes_sharing_coordinates_and_positions_are_accepted() {
+        // Hundreds of nodes on one height and one x, and forty at one point: a k-d tree that
+        // splits buckets by depth cannot take these.
+        let free = |_: &[f64; 3], _: &[f64; 3]| true;
+        let mut g = TopoGraph::new();
+        for k in 0..300 {
+            g.add_node([1.0, 0.1 * f64::from(k % 60), 10.3], 2.0, &free)
+                .unwrap();
+        }
+        for _ in 0..40 {
+            g.add_temporary_node([1.0, 1.0, 10.3], 2.0, &free).unwrap();
+        }
+        let brute = brute_neighbours(&g, 2.0);
+        for (i, want) in brute.iter().enumerate() {
+            assert_eq!(&neighbour_ids(&g, i), want, "node {i}");
+        }
+        g.clear_temporary();
+        assert_eq!(g.len(), 300);
+        let c = g.add_temporary_node([1.0, 1.0, 10.3], 2.0, &free).unwrap();
+        assert_eq!(neighbour_ids(&g, c), brute_neighbours(&g, 2.0)[c]);
+    }
+
+    proptest! {
+        /// Edges join exactly the node pairs within the radius (the free-space check passing
+        /// all), whatever the radii, and with coordinates snapped to a coarse lattice so many
+        /// nodes share them.
+        #[test]
+        fn edges_are_the_pairs_within_the_radius(
+            pts in proptest::collection::vec((0u8..8, 0u8..8, 0u8..3), 1..80),
+            first_radius in 0.0f64..4.0,
+            radius in 0.0f64..4.0,
+            scale in prop_oneof![Just(0.5f64), Just(1e3), Just(1e-3)],
+        ) {
+            let free = |_: &[f64; 3], _: &[f64; 3]| true;
+            let mut g = TopoGraph::new();
+            for (k, (x, y, z)) in pts.iter().enumerate() {
+                let p = [f64::from(*x) * scale, f64::from(*y) * scale, f64::from(*z) * scale];
+                // The first insertion fixes the hash cell; later ones use another radius.
+                let r = if k == 0 { first_radius } else { radius };
+                g.add_node(p, r, &free).unwrap();
+            }
+            let brute = brute_neighbours(&g, radius);
+            for i in 1..g.len() {
+                // Node i connected to the earlier nodes within `radius` when it came.
+                let earlier: Vec<NodeId> = neighbour_ids(&g, i).into_iter().filter(|&j| j < i).collect();
+                let want: Vec<NodeId> = brute[i].iter().copied().filter(|&j| j < i).collect();
+                prop_assert_eq!(earlier, want);
+            }
+        }
     }
 }

@@ -10,7 +10,7 @@
 //! odometry node, and the cost matrix of the open tour (9).
 //!
 //! - [`TopoGraph`]: nodes connected within a radius when the caller's [`FreeSpace`] check passes
-//!   (neighbour search with kiddo), temporary per-cycle nodes, A* and Dijkstra;
+//!   (neighbour search in a spatial hash), temporary per-cycle nodes, A* and Dijkstra;
 //! - [`transition_cost`], [`heading_cost`], [`cost_matrix`];
 //! - [`CostMatrix`]: a validated asymmetric matrix, with the open-tour reduction
 //!   ([`CostMatrix::with_free_return_to_start`]);
