@@ -57,6 +57,12 @@ const GRID_EXPANSIONS: usize = 60_000;
 /// How long the UAV looks from a reached viewpoint before its frontier counts as out of view
 /// from there \[s\].
 const DWELL: f64 = 1.0;
+/// The current target is kept while a target of the new plan has its viewpoint or its
+/// frontier centre this close to it \[m\].
+const KEEP_RADIUS: f64 = 1.0;
+
+/// Around the UAV, grid paths may keep as little clearance as the UAV has \[m\].
+const ESCAPE_RADIUS: f64 = 1.0;
 
 /// Errors of an exploration run.
 #[derive(Debug, thiserror::Error)]
@@ -536,8 +542,9 @@ impl Scan {
 }
 
 /// Whether the segment a → b runs through known-free cells keeping `clearance` from occupied
-/// ones; within `relaxed` metres of `a` 70 % of it suffices (the UAV's own position may sit
-/// closer to a wall than the graph's edges do).
+/// ones; within `relaxed` metres of `a` 70 % of it suffices, or the clearance `a` itself has
+/// if that is less (the UAV's own position may sit closer to a wall than the graph's edges
+/// do, and it must be able to leave).
 fn segment_free(
     map: &VoxelMap,
     a: &Point3<f64>,
@@ -548,6 +555,11 @@ fn segment_free(
     if !map.line_of_sight(a, b) {
         return false;
     }
+    let near = if relaxed > 0.0 {
+        (0.7 * clearance).min(map.clearance(a, clearance))
+    } else {
+        clearance
+    };
     let d = b - a;
     let len = d.norm();
     let step = 0.5 * map.grid().resolution();
@@ -556,11 +568,7 @@ fn segment_free(
     let n = (len / step).ceil().max(1.0) as u32;
     (0..=n).all(|i| {
         let s = f64::from(i) / f64::from(n);
-        let c = if s * len < relaxed {
-            0.7 * clearance
-        } else {
-            clearance
-        };
+        let c = if s * len < relaxed { near } else { clearance };
         map.is_clear(&(a + d * s), c)
     })
 }
@@ -568,7 +576,9 @@ fn segment_free(
 /// A shortest path on the map's cells from `from` to `to` through known-free cells whose
 /// centres keep `clearance` (26-connected, A*), shortened by skipping to the farthest vertex
 /// each [`segment_free`] segment reaches; `None` if none is found within `max_expansions`
-/// cell expansions. The first cell (the UAV's) needs no clearance.
+/// cell expansions. The first cell (the UAV's) needs no clearance, and cells within
+/// [`ESCAPE_RADIUS`] of it only the clearance `from` has, if that is less: a UAV pushed
+/// close to a wall can always leave.
 fn grid_path(
     map: &VoxelMap,
     from: &Point3<f64>,
@@ -580,6 +590,7 @@ fn grid_path(
     use std::collections::BinaryHeap;
     let grid = map.grid();
     let (start, goal) = (grid.cell_of(from)?, grid.cell_of(to)?);
+    let near = map.clearance(from, clearance);
     let res = grid.resolution();
     let h = |c: frontier::Cell| (grid.center(c) - grid.center(goal)).norm();
     // Costs are non-negative: their bit patterns order like the values.
@@ -622,9 +633,15 @@ fn grid_path(
                         continue;
                     };
                     let pass = *ok.entry(n).or_insert_with(|| {
+                        let p = grid.center(n);
+                        let need = if (p - from).norm() <= ESCAPE_RADIUS {
+                            near
+                        } else {
+                            clearance
+                        };
                         n == goal
                             || (map.cell_state(n) == frontier::CellState::Free
-                                && map.is_clear(&grid.center(n), clearance))
+                                && map.is_clear(&p, need))
                     });
                     if !pass {
                         continue;
@@ -673,6 +690,63 @@ fn capped(v: Vector3<f64>, max: f64) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
+/// The frontier clusters the mission asks for: at least [`FrontierConfig::min_cluster_cells`]
+/// cells, more than a quarter of them inside the region and not [`surface_bound`].
+///
+/// [`FrontierConfig::min_cluster_cells`]: frontier::FrontierConfig::min_cluster_cells
+fn mission_clusters<'a>(
+    frontiers: &'a Frontiers,
+    map: &'a VoxelMap,
+    region: (Point3<f64>, Point3<f64>),
+) -> impl Iterator<Item = &'a frontier::Cluster> {
+    let grid = *map.grid();
+    let h = 0.5 * grid.resolution();
+    let (lo, hi) = region;
+    let inner = move |p: Point3<f64>| (0..3).all(|k| p[k] > lo[k] + h && p[k] < hi[k] - h);
+    frontiers.clusters().filter(move |c| {
+        let live = c
+            .cells()
+            .iter()
+            .filter(|&&q| inner(grid.center(q)) && !surface_bound(map, q))
+            .count();
+        // A frontier onto a narrow passage has many cells beside its walls: a quarter of free
+        // ones keeps it.
+        4 * live > c.cells().len()
+    })
+}
+
+/// Whether a frontier cell lies on a surface: along an axis where it has an unknown face
+/// neighbour, one of its four face neighbours across that axis is occupied.
+///
+/// A cell that a surface cuts in two can be free (rays cross its open half) while its
+/// neighbour on the far side, inside the solid, is never observed: a frontier no view
+/// resolves. Such cells sit in a layer of occupied ones; a frontier onto open unknown space
+/// has free or unknown cells beside it. On the region's faces the same happens with the map's
+/// padding and the scene's outer walls, so cells there are not counted either.
+fn surface_bound(map: &VoxelMap, c: frontier::Cell) -> bool {
+    use frontier::CellState::{Occupied, Unknown};
+    let grid = map.grid();
+    let state = |d: [i32; 3]| grid.offset(c, d).map(|n| map.cell_state(n));
+    (0..3).any(|axis| {
+        let mut d = [0; 3];
+        d[axis] = 1;
+        let up = state(d);
+        d[axis] = -1;
+        let down = state(d);
+        if up != Some(Unknown) && down != Some(Unknown) {
+            return false;
+        }
+        // The four sideways neighbours.
+        (0..3).filter(|&k| k != axis).any(|k| {
+            let mut e = [0; 3];
+            e[k] = 1;
+            let a = state(e);
+            e[k] = -1;
+            a == Some(Occupied) || state(e) == Some(Occupied)
+        })
+    })
+}
+
 /// The explorer's state between frames.
 struct Explorer<'a> {
     config: &'a ExplorerConfig,
@@ -689,6 +763,8 @@ struct Explorer<'a> {
     /// When the UAV reached the viewpoint it now hovers at.
     arrival: Option<f64>,
     last_targets: usize,
+    /// The mission's region \[m\].
+    region: (Point3<f64>, Point3<f64>),
 }
 
 impl Explorer<'_> {
@@ -736,7 +812,8 @@ impl Explorer<'_> {
         let here = Point3::from(p);
         // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
         // and the tour is planned where the UAV can act next.
-        let mut clusters: Vec<&frontier::Cluster> = self.frontiers.clusters().collect();
+        let mut clusters: Vec<&frontier::Cluster> =
+            mission_clusters(&self.frontiers, &self.map, self.region).collect();
         if clusters.len() > self.config.max_clusters {
             clusters.sort_by(|a, b| {
                 let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
@@ -764,6 +841,19 @@ impl Explorer<'_> {
             })
             .collect();
         self.last_targets = targets.len();
+        // The current target is kept until it is reached or its frontier is gone: re-choosing
+        // the tour's first target every cycle makes the UAV turn back and forth between
+        // targets as the map grows, and it reaches none.
+        if let Some((vp, center)) = self.target
+            && !force
+            && !self.reference.done(t)
+            && targets.iter().any(|t| {
+                (t.viewpoint - vp).norm() < KEEP_RADIUS || (t.center - center).norm() < KEEP_RADIUS
+            })
+        {
+            self.stalled_since = None;
+            return Ok(false);
+        }
         if targets.is_empty() {
             self.stalled_since.get_or_insert(t);
             return Ok(false);
@@ -866,6 +956,16 @@ impl Explorer<'_> {
                     .trajectory,
             )
         };
+        // A new trajectory that swings close to a wall (the UAV's momentum carries it past
+        // a sharp turn) does not replace a safe one: the UAV stays on course and plans again.
+        if let Some(new) = &traj
+            && self.too_close(new, 0.0)?
+            && self.reference.traj.is_some()
+            && !force
+            && !self.reference.done(t)
+        {
+            return Ok(false);
+        }
         if traj.is_some() {
             self.arrival = None;
         }
@@ -876,18 +976,36 @@ impl Explorer<'_> {
         Ok(true)
     }
 
-    /// Whether the rest of the trajectory passes within the UAV's radius of a known obstacle.
+    /// Whether the rest of the trajectory passes closer to a known obstacle than halfway
+    /// between the UAV's radius and the planning clearance (see [`Explorer::too_close`]).
     fn blocked(&self, t: f64) -> Result<bool, ExploreError> {
-        let Some(traj) = &self.reference.traj else {
-            return Ok(false);
-        };
-        let mut s = (t - self.reference.t0).max(0.0);
+        match &self.reference.traj {
+            Some(traj) => self.too_close(traj, t - self.reference.t0),
+            None => Ok(false),
+        }
+    }
+
+    /// Whether `traj` from time `s` on passes closer to a known obstacle than halfway between
+    /// the UAV's radius and the planning clearance. Trajectories are kept while their target
+    /// stays, so obstacles seen later must be caught with a margin. Within [`ESCAPE_RADIUS`]
+    /// of the start the clearance the start has is enough, so a UAV near a wall can keep a
+    /// path that leaves it.
+    fn too_close(&self, traj: &Trajectory<3>, s: f64) -> Result<bool, ExploreError> {
+        let margin = 0.5 * (self.config.flight.radius + self.config.clearance);
+        let mut s = s.max(0.0);
+        let start = Point3::from(traj.position(s.min(traj.duration()))?);
+        let near = self.map.clearance(&start, margin);
         while s < traj.duration() {
             let p = Point3::from(traj.position(s)?);
-            if !self.map.is_clear(&p, self.config.flight.radius) {
+            let need = if (p - start).norm() <= ESCAPE_RADIUS {
+                near.max(self.config.flight.radius)
+            } else {
+                margin
+            };
+            if !self.map.is_clear(&p, need) {
                 return Ok(true);
             }
-            s += 0.1;
+            s += 0.05;
         }
         Ok(false)
     }
@@ -943,6 +1061,7 @@ pub fn explore(
         exhausted: Vec::new(),
         arrival: None,
         last_targets: 0,
+        region: (mission.min, mission.max),
     };
     let mut track = Tracking::at_rest(0.0, fc.tracking_lag);
     let actual =
@@ -1166,11 +1285,13 @@ pub fn explore(
             ));
         }
         scan_targets.clear();
-        scan_targets.extend(ex.frontiers.clusters().map(|c| FrontierTarget {
-            center: c.center(),
-            #[allow(clippy::cast_precision_loss)]
-            score: c.cells().len() as f64,
-        }));
+        scan_targets.extend(
+            mission_clusters(&ex.frontiers, &ex.map, ex.region).map(|c| FrontierTarget {
+                center: c.center(),
+                #[allow(clippy::cast_precision_loss)]
+                score: c.cells().len() as f64,
+            }),
+        );
         let measured = measured_motor(&angles, latency);
         let input = ScanInput {
             motor: measured.unwrap_or(motor_state),
@@ -1399,6 +1520,29 @@ mod tests {
     }
 
     #[test]
+    fn frontier_cells_beside_occupied_ones_are_surface_bound() {
+        let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(4.0, 4.0, 4.0)).unwrap();
+        let o = Point3::new(0.5, 2.1, 2.1);
+        let f = Point3::new(1.1, 2.1, 2.1);
+        // One ray along x: the cell of f is free, unknown above and below.
+        let ray = |end: Point3<f64>| {
+            let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
+            map.insert_frame(&o, &[end]).unwrap();
+            map
+        };
+        // It ends in the next cell: f is free with an occupied neighbour beside its unknown
+        // ones, as on a surface.
+        let on_surface = ray(Point3::new(1.3, 2.1, 2.1));
+        let c = on_surface.grid().cell_of(&f).unwrap();
+        assert!(Frontiers::is_frontier_in(&on_surface, c));
+        assert!(surface_bound(&on_surface, c));
+        // It goes on: f's neighbours are free or unknown, a frontier onto open space.
+        let open = ray(Point3::new(2.5, 2.1, 2.1));
+        assert!(Frontiers::is_frontier_in(&open, c));
+        assert!(!surface_bound(&open, c));
+    }
+
+    #[test]
     fn grid_paths_go_round_walls_and_keep_their_clearance() {
         // A fully known 10 × 6 × 3 m box with a wall across x = 5 leaving a gap at y > 4.
         let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(10.0, 6.0, 3.0)).unwrap();
@@ -1443,6 +1587,24 @@ mod tests {
         }
         // No path when the gap is too narrow for the clearance.
         assert!(grid_path(&map, &a, &b, 1.2, 200_000).is_none());
+        // A UAV pushed to 0.2 m from the wall (no neighbouring cell has 0.5 m) still leaves:
+        // near it the path keeps the clearance it has, farther on the full clearance.
+        let c = Point3::new(4.61, 2.0, 1.5);
+        let near = map.clearance(&c, 0.5);
+        assert!(near < 0.25, "{near}");
+        let path = grid_path(&map, &c, &b, 0.5, 200_000).unwrap();
+        assert_eq!(path.last(), Some(&b));
+        for p in &path[1..] {
+            let need = if (p - c).norm() <= ESCAPE_RADIUS {
+                near
+            } else {
+                0.5
+            };
+            assert!(map.clearance(p, 0.5) >= need - 1e-9, "{p:?}");
+        }
+        for w in path.windows(2) {
+            assert!(map.line_of_sight(&w[0], &w[1]), "{w:?}");
+        }
     }
 
     #[test]
