@@ -61,6 +61,9 @@ const DWELL: f64 = 1.0;
 /// frontier centre this close to it \[m\].
 const KEEP_RADIUS: f64 = 1.0;
 
+/// Trajectories keep this much more than the UAV's radius from known obstacles \[m\].
+const SAFETY_MARGIN: f64 = 0.05;
+
 /// Around the UAV, grid paths may keep as little clearance as the UAV has \[m\].
 const ESCAPE_RADIUS: f64 = 1.0;
 
@@ -976,8 +979,8 @@ impl Explorer<'_> {
         Ok(true)
     }
 
-    /// Whether the rest of the trajectory passes closer to a known obstacle than halfway
-    /// between the UAV's radius and the planning clearance (see [`Explorer::too_close`]).
+    /// Whether the rest of the trajectory passes closer to a known obstacle than the UAV's
+    /// radius and [`SAFETY_MARGIN`] (see [`Explorer::too_close`]).
     fn blocked(&self, t: f64) -> Result<bool, ExploreError> {
         match &self.reference.traj {
             Some(traj) => self.too_close(traj, t - self.reference.t0),
@@ -985,13 +988,13 @@ impl Explorer<'_> {
         }
     }
 
-    /// Whether `traj` from time `s` on passes closer to a known obstacle than halfway between
-    /// the UAV's radius and the planning clearance. Trajectories are kept while their target
-    /// stays, so obstacles seen later must be caught with a margin. Within [`ESCAPE_RADIUS`]
+    /// Whether `traj` from time `s` on passes closer to a known obstacle than the UAV's radius
+    /// and [`SAFETY_MARGIN`]. Trajectories are kept while their target stays, so obstacles
+    /// seen later must be caught with a margin. Within [`ESCAPE_RADIUS`]
     /// of the start the clearance the start has is enough, so a UAV near a wall can keep a
     /// path that leaves it.
     fn too_close(&self, traj: &Trajectory<3>, s: f64) -> Result<bool, ExploreError> {
-        let margin = 0.5 * (self.config.flight.radius + self.config.clearance);
+        let margin = self.config.flight.radius + SAFETY_MARGIN;
         let mut s = s.max(0.0);
         let start = Point3::from(traj.position(s.min(traj.duration()))?);
         let near = self.map.clearance(&start, margin);
