@@ -768,6 +768,9 @@ struct Explorer<'a> {
     last_targets: usize,
     /// The mission's region \[m\].
     region: (Point3<f64>, Point3<f64>),
+    /// The clusters [`mission_clusters`] keeps, by id, as of the last map update: the planner
+    /// and the scan targets share one evaluation per frame.
+    mission: Vec<frontier::ClusterId>,
 }
 
 impl Explorer<'_> {
@@ -815,8 +818,11 @@ impl Explorer<'_> {
         let here = Point3::from(p);
         // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
         // and the tour is planned where the UAV can act next.
-        let mut clusters: Vec<&frontier::Cluster> =
-            mission_clusters(&self.frontiers, &self.map, self.region).collect();
+        let mut clusters: Vec<&frontier::Cluster> = self
+            .mission
+            .iter()
+            .filter_map(|id| self.frontiers.cluster(*id))
+            .collect();
         if clusters.len() > self.config.max_clusters {
             clusters.sort_by(|a, b| {
                 let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
@@ -1065,6 +1071,7 @@ pub fn explore(
         arrival: None,
         last_targets: 0,
         region: (mission.min, mission.max),
+        mission: Vec::new(),
     };
     let mut track = Tracking::at_rest(0.0, fc.tracking_lag);
     let actual =
@@ -1209,6 +1216,9 @@ pub fn explore(
             let update = ex.map.insert_frame(&origin, &world_points)?;
             ex.frontiers.update(&ex.map, &update);
         }
+        ex.mission.clear();
+        ex.mission
+            .extend(mission_clusters(&ex.frontiers, &ex.map, ex.region).map(|c| c.id()));
         log.timings.mapping.push(ms(clock));
 
         // The tracking controller moves its target by plan − estimate (as in `flight`).
@@ -1289,11 +1299,14 @@ pub fn explore(
         }
         scan_targets.clear();
         scan_targets.extend(
-            mission_clusters(&ex.frontiers, &ex.map, ex.region).map(|c| FrontierTarget {
-                center: c.center(),
-                #[allow(clippy::cast_precision_loss)]
-                score: c.cells().len() as f64,
-            }),
+            ex.mission
+                .iter()
+                .filter_map(|id| ex.frontiers.cluster(*id))
+                .map(|c| FrontierTarget {
+                    center: c.center(),
+                    #[allow(clippy::cast_precision_loss)]
+                    score: c.cells().len() as f64,
+                }),
         );
         let measured = measured_motor(&angles, latency);
         let input = ScanInput {

@@ -348,6 +348,7 @@ impl Frontiers {
         let mut added = Vec::new();
         let mut stack = Vec::new();
         let mut parts = Vec::new();
+        let radius = self.config.max_cluster_radius / grid.resolution();
         for seed in seeds {
             let seed = Cell::from_key(seed);
             if !pool.remove(seed) {
@@ -361,7 +362,6 @@ impl Frontiers {
                 stack.extend_from_slice(&region[before..]);
             }
             parts.clear();
-            let radius = self.config.max_cluster_radius / grid.resolution();
             split(&mut region, 0, radius, &mut parts);
             for (range, moments) in &parts {
                 let mut keys: Vec<u64> = region[range.clone()].iter().map(sort_key).collect();
