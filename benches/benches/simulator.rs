@@ -59,6 +59,13 @@ fn bench_rays(c: &mut Criterion) {
     bench_casts(c, "world_20k_ray_casts_maze", &dirs, &origin, |o, d| {
         world.cast_ray(o, d, 40.0)
     });
+    bench_casts(
+        c,
+        "world_20k_ray_casts_maze_parry",
+        &dirs,
+        &origin,
+        |o, d| world.cast_ray_parry(o, d, 40.0),
+    );
 }
 
 fn bench_frame(c: &mut Criterion) {

@@ -10,6 +10,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+mod box_grid;
 pub mod cloud_io;
 pub mod explorer;
 pub mod flight;

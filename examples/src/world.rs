@@ -5,6 +5,8 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{Compound, Cuboid, SharedShape, Voxels};
 
+use crate::box_grid::{Aabb, BoxGrid};
+
 /// Errors building a world.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
@@ -26,7 +28,9 @@ pub enum WorldError {
 /// The solid geometry of a world.
 #[derive(Clone)]
 enum Geometry {
-    Boxes(Compound),
+    /// parry3d's compound answers distances; a uniform grid of our own answers ray casts
+    /// (faster for the LiDAR; see the simulator bench).
+    Boxes(Compound, BoxGrid),
     /// A point cloud's voxels: parry3d's voxel shape answers distances, a dense bit grid
     /// walked by DDA answers ray casts (faster for the LiDAR; see the simulator bench).
     Voxels(Voxels, VoxelGrid),
@@ -156,8 +160,9 @@ impl VoxelGrid {
 
 /// A static world of solid axis-aligned boxes, or of the occupied voxels of a point cloud.
 ///
-/// parry3d works in `f32`: distances and ray lengths are exact to about 1e-6 relative
-/// (2 µm at 20 m), far below the LiDAR's range noise.
+/// Ray casts run in `f64` (a DDA through a grid of box lists, or through the voxels);
+/// distances come from parry3d, which works in `f32`: exact to about 1e-6 relative (2 µm at
+/// 20 m), far below the LiDAR's range noise.
 ///
 /// # Example
 /// ```
@@ -177,7 +182,7 @@ pub struct World {
 impl std::fmt::Debug for World {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match &self.geometry {
-            Some(Geometry::Boxes(c)) => f
+            Some(Geometry::Boxes(c, _)) => f
                 .debug_struct("World")
                 .field("boxes", &c.shapes().len())
                 .finish(),
@@ -199,11 +204,16 @@ impl World {
     /// [`WorldError::BadBox`] for a box that is not finite or has min > max.
     pub fn from_boxes(boxes: &[(Point3<f64>, Point3<f64>)]) -> Result<Self, WorldError> {
         let mut shapes = Vec::with_capacity(boxes.len());
+        let mut aabbs = Vec::with_capacity(boxes.len());
         for (i, (lo, hi)) in boxes.iter().enumerate() {
             let ok = (0..3).all(|k| lo[k].is_finite() && hi[k].is_finite() && lo[k] <= hi[k]);
             if !ok {
                 return Err(WorldError::BadBox(i));
             }
+            aabbs.push(Aabb {
+                lo: [lo.x, lo.y, lo.z],
+                hi: [hi.x, hi.y, hi.z],
+            });
             let c = (lo.coords + hi.coords) * 0.5;
             let h = (hi - lo) * 0.5;
             // parry3d is f32: the narrowing is intended.
@@ -215,7 +225,8 @@ impl World {
             ));
         }
         Ok(Self {
-            geometry: (!shapes.is_empty()).then(|| Geometry::Boxes(Compound::new(shapes))),
+            geometry: (!shapes.is_empty())
+                .then(|| Geometry::Boxes(Compound::new(shapes), BoxGrid::new(&aabbs))),
         })
     }
 
@@ -286,40 +297,33 @@ impl World {
     /// Distance along the unit direction `dir` from `origin` to the first surface, if one is
     /// within `max` \[m\]. A ray starting inside a box or voxel hits at 0. `None` for NaN input.
     pub fn cast_ray(&self, origin: &Point3<f64>, dir: &Vector3<f64>, max: f64) -> Option<f64> {
-        let g = self.geometry.as_ref()?;
-        #[allow(clippy::cast_possible_truncation)]
-        let ray = Ray::new(origin.map(|v| v as f32), dir.map(|v| v as f32));
-        #[allow(clippy::cast_possible_truncation)]
-        let max = max as f32;
-        let id = Isometry3::identity();
-        match g {
-            Geometry::Boxes(c) => c.cast_ray(&id, &ray, max, true).map(f64::from),
-            Geometry::Voxels(_, grid) => grid.cast_ray(origin, dir, f64::from(max)),
+        match self.geometry.as_ref()? {
+            Geometry::Boxes(_, grid) => grid.cast_ray(origin, dir, max),
+            Geometry::Voxels(_, grid) => grid.cast_ray(origin, dir, max),
         }
         .filter(|t| t.is_finite())
     }
 
-    /// [`World::cast_ray`] through parry3d's own voxel ray cast instead of the DDA grid, for
-    /// point-cloud worlds (box worlds answer as `cast_ray`): kept so the simulator bench can
-    /// compare the two in one run.
+    /// [`World::cast_ray`] through parry3d's own ray casts (its compound shape, or its voxel
+    /// shape) instead of our box grid or voxel grid: kept so the simulator bench can compare
+    /// the two in one run, and the tests can check one against the other.
     pub fn cast_ray_parry(
         &self,
         origin: &Point3<f64>,
         dir: &Vector3<f64>,
         max: f64,
     ) -> Option<f64> {
+        #[allow(clippy::cast_possible_truncation)]
+        let ray = Ray::new(origin.map(|x| x as f32), dir.map(|x| x as f32));
+        #[allow(clippy::cast_possible_truncation)]
+        let max = max as f32;
+        let id = Isometry3::identity();
         match self.geometry.as_ref()? {
-            Geometry::Voxels(v, _) => {
-                #[allow(clippy::cast_possible_truncation)]
-                let ray = Ray::new(origin.map(|x| x as f32), dir.map(|x| x as f32));
-                #[allow(clippy::cast_possible_truncation)]
-                let max = max as f32;
-                v.cast_ray(&Isometry3::identity(), &ray, max, true)
-                    .map(f64::from)
-                    .filter(|t| t.is_finite())
-            }
-            Geometry::Boxes(_) => self.cast_ray(origin, dir, max),
+            Geometry::Boxes(c, _) => c.cast_ray(&id, &ray, max, true),
+            Geometry::Voxels(v, _) => v.cast_ray(&id, &ray, max, true),
         }
+        .map(f64::from)
+        .filter(|t| t.is_finite())
     }
 
     /// Distance from `p` to the nearest box or voxel \[m\]; 0 inside one, infinite in an empty
@@ -332,7 +336,7 @@ impl World {
         let q = p.map(|v| v as f32);
         let id = Isometry3::identity();
         f64::from(match g {
-            Geometry::Boxes(c) => c.distance_to_point(&id, &q, true),
+            Geometry::Boxes(c, _) => c.distance_to_point(&id, &q, true),
             Geometry::Voxels(v, _) => v.distance_to_point(&id, &q, true),
         })
     }
@@ -458,6 +462,34 @@ mod tests {
             }
             let truth = nearest_box(&boxes, &origin);
             prop_assert!((w.distance(&origin) - truth).abs() < 1e-4 * (1.0 + truth), "{} vs {}", w.distance(&origin), truth);
+        }
+    }
+
+    /// In the generated scenes, our ray casts agree with parry3d's (to its `f32` precision)
+    /// on rays from random free points in random directions.
+    #[test]
+    fn scene_ray_casts_agree_with_parry() {
+        use crate::rng::Rng;
+        use crate::scene::Scene;
+        for scene in [Scene::small(1), Scene::maze(1), Scene::sinkhole(1)] {
+            let w = scene.world().unwrap();
+            let mut rng = Rng::new(5);
+            let (lo, hi) = (scene.min, scene.max);
+            let mut hits = 0;
+            for _ in 0..2000 {
+                let o = Point3::from(Vector3::from_fn(|k, _| rng.range(lo[k], hi[k])));
+                let d = Vector3::from_fn(|_, _| rng.normal()).normalize();
+                let (ours, parry) = (w.cast_ray(&o, &d, 40.0), w.cast_ray_parry(&o, &d, 40.0));
+                match (ours, parry) {
+                    (Some(a), Some(b)) => {
+                        assert!((a - b).abs() < 1e-4 * (1.0 + b), "{o} {d}: {a} vs {b}");
+                        hits += 1;
+                    }
+                    (None, None) => {}
+                    _ => panic!("{o} {d}: {ours:?} vs {parry:?}"),
+                }
+            }
+            assert!(hits > 1000, "{hits}");
         }
     }
 
