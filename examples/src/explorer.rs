@@ -686,11 +686,31 @@ fn arr(p: &Point3<f64>) -> [f64; 3] {
     [p.x, p.y, p.z]
 }
 
-/// A vector scaled down to at most `max` long.
-fn capped(v: Vector3<f64>, max: f64) -> [f64; 3] {
-    let n = v.norm();
-    let v = if n > max { v * (max / n) } else { v };
-    [v.x, v.y, v.z]
+/// The head state of a new trajectory and the speed and acceleration limits to optimise it
+/// under, from the current plan state `[p, v, a]`; `None` to keep the current plan.
+///
+/// The head is the state exactly: the UAV flies plan + offset, so a jump in the plan's
+/// velocity would be a jump of the true velocity that the IMU never measures (capping the
+/// head at the limits did that, and the odometry drifted by metres). The limits are soft, so a
+/// plan may exceed them for a while: until it is back within them it is kept, unless it must
+/// be `replace`d; then the limits start at the current speed and acceleration, which the
+/// optimiser requires of a head.
+fn trajectory_head(
+    state: &[Vector3<f64>; 3],
+    v_max: f64,
+    a_max: f64,
+    replace: bool,
+) -> Option<([[f64; 3]; 3], f64, f64)> {
+    let [p, v, a] = state;
+    let (speed, accel) = (v.norm(), a.norm());
+    if (speed > v_max || accel > a_max) && !replace {
+        return None;
+    }
+    Some((
+        [[p.x, p.y, p.z], [v.x, v.y, v.z], [a.x, a.y, a.z]],
+        v_max.max(speed),
+        a_max.max(accel),
+    ))
 }
 
 /// The frontier clusters the mission asks for: at least [`FrontierConfig::min_cluster_cells`]
@@ -933,16 +953,18 @@ impl Explorer<'_> {
         if same && !force && !self.reference.done(t) {
             return Ok(false);
         }
-        // A trajectory from the current planned state through the path's inner nodes.
-        let head = [
-            [p.x, p.y, p.z],
-            capped(v, 0.99 * self.config.v_max),
-            capped(a, 0.99 * self.config.a_max),
-        ];
+        let Some((head, v_max, a_max)) = trajectory_head(
+            &[p, v, a],
+            self.config.v_max,
+            self.config.a_max,
+            force || self.reference.done(t),
+        ) else {
+            return Ok(false);
+        };
         let goal = positions.last().copied().unwrap_or(arr(&here));
         let tail = [goal, [0.0; 3], [0.0; 3]];
         let inner = &positions[1..positions.len().saturating_sub(1).max(1)];
-        let mut cfg = OptimizerConfig::default().with_limits(self.config.v_max, self.config.a_max);
+        let mut cfg = OptimizerConfig::default().with_limits(v_max, a_max);
         cfg.corridor_radius = Some(self.config.corridor);
         cfg.waypoint_weight = 1e4;
         let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
@@ -1400,6 +1422,34 @@ fn ms(clock: Instant) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A new trajectory starts at the plan's state exactly; a plan above the limits is kept
+    /// unless it must be replaced, and then the optimiser accepts its state as the head.
+    #[test]
+    fn trajectory_heads_continue_the_plan_exactly() {
+        let p = Vector3::new(1.0, 2.0, 3.0);
+        let slow = [p, Vector3::new(1.5, 0.0, 0.0), Vector3::new(0.0, 1.0, 0.0)];
+        let (head, v, a) = trajectory_head(&slow, 2.0, 2.0, false).unwrap();
+        assert_eq!(head, [[1.0, 2.0, 3.0], [1.5, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!((v, a), (2.0, 2.0));
+        let fast = [p, Vector3::new(3.0, 0.0, 0.0), Vector3::new(0.0, 2.5, 0.0)];
+        assert!(trajectory_head(&fast, 2.0, 2.0, false).is_none());
+        let (head, v, a) = trajectory_head(&fast, 2.0, 2.0, true).unwrap();
+        assert_eq!(head[1], [3.0, 0.0, 0.0]);
+        assert_eq!(head[2], [0.0, 2.5, 0.0]);
+        assert_eq!((v, a), (3.0, 2.5));
+        let cfg = OptimizerConfig::default().with_limits(v, a);
+        let tail = [[8.0, 2.0, 3.0], [0.0; 3], [0.0; 3]];
+        let traj = Optimizer::<3, 3>::new(cfg, head, tail, &[[5.0, 2.0, 3.0]])
+            .unwrap()
+            .optimize()
+            .unwrap()
+            .trajectory;
+        let v0 = traj.velocity(0.0).unwrap();
+        assert!((Vector3::from(v0) - fast[1]).norm() < 1e-9, "{v0:?}");
+        let a0 = traj.acceleration(0.0).unwrap();
+        assert!((Vector3::from(a0) - fast[2]).norm() < 1e-9, "{a0:?}");
+    }
     use crate::scene::Scene;
 
     #[test]
