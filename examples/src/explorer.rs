@@ -35,7 +35,7 @@ use lidar_kinematics::{
 };
 use minco::{MincoError, Optimizer, OptimizerConfig, Trajectory};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 use topo_tsp::{CostConfig, NodeId, SolverConfig, TopoGraph, TspError, cost_matrix, solve_open};
 
 use crate::flight::{FlightConfig, FlightError, Tracking};
@@ -714,12 +714,19 @@ fn trajectory_head(
 }
 
 /// The frontier clusters the mission asks for: at least [`FrontierConfig::min_cluster_cells`]
-/// cells, more than a quarter of them inside the region and not [`surface_bound`].
+/// cells, more than a quarter of them inside the region, not [`surface_bound`] and never hit.
+///
+/// A frontier cell a return has ended in holds a surface: its unknown neighbour lies behind
+/// that surface, inside the solid, and no view resolves it. (The sinkhole's ledges lie at the
+/// heights of cell centres: the cells they cut are hit from above and cleared by grazing rays,
+/// so they end free with an unknown cell below and free cells beside, which
+/// [`surface_bound`] does not catch; runs never finished for them.)
 ///
 /// [`FrontierConfig::min_cluster_cells`]: frontier::FrontierConfig::min_cluster_cells
 fn mission_clusters<'a>(
     frontiers: &'a Frontiers,
     map: &'a VoxelMap,
+    hit_cells: &'a FxHashSet<frontier::Cell>,
     region: (Point3<f64>, Point3<f64>),
 ) -> impl Iterator<Item = &'a frontier::Cluster> {
     let grid = *map.grid();
@@ -730,7 +737,9 @@ fn mission_clusters<'a>(
         let live = c
             .cells()
             .iter()
-            .filter(|&&q| inner(grid.center(q)) && !surface_bound(map, q))
+            .filter(|&&q| {
+                inner(grid.center(q)) && !surface_bound(map, q) && !hit_cells.contains(&q)
+            })
             .count();
         // A frontier onto a narrow passage has many cells beside its walls: a quarter of free
         // ones keeps it.
@@ -791,6 +800,8 @@ struct Explorer<'a> {
     /// The clusters [`mission_clusters`] keeps, by id, as of the last map update: the planner
     /// and the scan targets share one evaluation per frame.
     mission: Vec<frontier::ClusterId>,
+    /// Every map cell a return has ended in: cells that hold a surface.
+    hit_cells: FxHashSet<frontier::Cell>,
 }
 
 impl Explorer<'_> {
@@ -1094,6 +1105,7 @@ pub fn explore(
         last_targets: 0,
         region: (mission.min, mission.max),
         mission: Vec::new(),
+        hit_cells: FxHashSet::default(),
     };
     let mut track = Tracking::at_rest(0.0, fc.tracking_lag);
     let actual =
@@ -1237,10 +1249,20 @@ pub fn explore(
         if ex.map.bounds().contains(&origin) {
             let update = ex.map.insert_frame(&origin, &world_points)?;
             ex.frontiers.update(&ex.map, &update);
+            // The cells returns end in (the map counts no hit beyond its range).
+            let range2 = config.map.max_range * config.map.max_range;
+            let grid = *ex.map.grid();
+            ex.hit_cells.extend(
+                world_points
+                    .iter()
+                    .filter(|p| (*p - origin).norm_squared() <= range2)
+                    .filter_map(|p| grid.cell_of(p)),
+            );
         }
         ex.mission.clear();
-        ex.mission
-            .extend(mission_clusters(&ex.frontiers, &ex.map, ex.region).map(|c| c.id()));
+        ex.mission.extend(
+            mission_clusters(&ex.frontiers, &ex.map, &ex.hit_cells, ex.region).map(|c| c.id()),
+        );
         log.timings.mapping.push(ms(clock));
 
         // The tracking controller moves its target by plan − estimate (as in `flight`).
@@ -1583,6 +1605,42 @@ mod tests {
         assert!(!log.occupied.is_empty());
         // The UAV hovered through the warm-up: no trajectory before 2 s.
         assert!(log.trajectory_starts.iter().all(|&t| t >= config.warmup));
+    }
+
+    /// A sheet of free cells onto open unknown space is a mission cluster until returns are
+    /// found to end in most of its cells: then its unknown side lies behind a surface.
+    #[test]
+    fn clusters_of_hit_cells_leave_the_mission() {
+        let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(8.0, 8.0, 4.0)).unwrap();
+        let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
+        // A fan of rays in the plane z = 2.1: free cells with unknown ones above and below.
+        let o = Point3::new(4.1, 4.1, 2.1);
+        let ends: Vec<Point3<f64>> = (0..360)
+            .map(|i| {
+                let a = f64::from(i).to_radians();
+                o + Vector3::new(a.cos(), a.sin(), 0.0) * 3.0
+            })
+            .collect();
+        map.insert_frame(&o, &ends).unwrap();
+        let mut frontiers = Frontiers::new(frontier::FrontierConfig::default()).unwrap();
+        frontiers.rebuild(&map);
+        let region = (Point3::new(0.0, 0.0, 0.0), Point3::new(8.0, 8.0, 4.0));
+        let mut hits = FxHashSet::default();
+        let kept = |hits: &FxHashSet<frontier::Cell>| {
+            mission_clusters(&frontiers, &map, hits, region).count()
+        };
+        let all = kept(&hits);
+        assert!(all > 0);
+        // A few stray returns change nothing.
+        let cells: Vec<frontier::Cell> = frontiers
+            .clusters()
+            .flat_map(|c| c.cells().iter().copied())
+            .collect();
+        hits.extend(cells.iter().step_by(10).copied());
+        assert_eq!(kept(&hits), all);
+        // Returns in every cell: no cluster is left.
+        hits.extend(cells.iter().copied());
+        assert_eq!(kept(&hits), 0);
     }
 
     #[test]
