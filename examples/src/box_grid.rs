@@ -1,6 +1,7 @@
-//! A uniform grid over solid axis-aligned boxes, for the LiDAR's ray casts in box worlds: a
-//! ray walks the cells by 3-D DDA and slab-tests the boxes each cell lists, in `f64`, until
-//! the nearest hit lies within the cells walked.
+//! Uniform grids walked by rays, for the LiDAR's ray casts: [`Lattice`], the cells of a grid
+//! and their 3-D DDA walk (Amanatides & Woo), shared by the voxel worlds' bit grid and by
+//! [`BoxGrid`], whose cells list the solid boxes that overlap them: a ray slab-tests the boxes
+//! of each cell it crosses, in `f64`, until the nearest hit lies within the cells walked.
 
 use nalgebra::{Point3, Vector3};
 
@@ -27,6 +28,12 @@ impl Aabb {
     /// Where the ray enters the box within `[0, max]`: 0 when it starts inside.
     #[inline]
     fn entry(&self, ray: &RayData, max: f64) -> Option<f64> {
+        self.span(ray, max).map(|(t0, _)| t0)
+    }
+
+    /// The part of `[0, max]` the ray spends in the box, as (entry, exit).
+    #[inline]
+    fn span(&self, ray: &RayData, max: f64) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (0.0f64, max);
         for k in 0..3 {
             let (near, far) = if ray.negative[k] {
@@ -45,7 +52,7 @@ impl Aabb {
                 t1 = b;
             }
         }
-        (t0 <= t1).then_some(t0)
+        (t0 <= t1).then_some((t0, t1))
     }
 }
 
@@ -77,13 +84,102 @@ const CELLS_PER_BOX: f64 = 8.0;
 /// Most cells a grid may have.
 const MAX_CELLS: f64 = 16_777_216.0;
 
+/// The cells of a uniform grid: its lower corner, cell edge and cell counts (each at least
+/// one).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Lattice {
+    pub lo: [f64; 3],
+    pub cell: f64,
+    pub dims: [usize; 3],
+}
+
+impl Lattice {
+    /// The cell holding `p`, clamped into the grid.
+    pub(crate) fn cell_of(&self, p: &[f64; 3]) -> [usize; 3] {
+        // Clamped into the grid: the cast is exact.
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            clippy::cast_precision_loss
+        )]
+        [0, 1, 2].map(|k| {
+            ((p[k] - self.lo[k]) / self.cell)
+                .floor()
+                .clamp(0.0, (self.dims[k] - 1) as f64) as usize
+        })
+    }
+
+    /// The linear index of cell `c`, x fastest.
+    pub(crate) fn index(&self, c: [usize; 3]) -> usize {
+        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+    }
+
+    /// Walks the cells the ray `o + t d` crosses within `[0, max]`, in order, calling
+    /// `visit(index, entry, exit)` for each; returns the first `Some` a visit gives, `None` when
+    /// the ray leaves the grid or passes `max` first, or for non-finite input.
+    pub(crate) fn walk<R>(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        max: f64,
+        mut visit: impl FnMut(usize, f64, f64) -> Option<R>,
+    ) -> Option<R> {
+        let finite = o.iter().chain(d.iter()).all(|v| v.is_finite());
+        if !finite || max.is_nan() || max < 0.0 {
+            return None;
+        }
+        let ray = RayData::new(o, d);
+        #[allow(clippy::cast_precision_loss)]
+        let bounds = Aabb {
+            lo: self.lo,
+            hi: [0, 1, 2].map(|k| self.lo[k] + self.dims[k] as f64 * self.cell),
+        };
+        let (mut t, t1) = bounds.span(&ray, max)?;
+        let p = [0, 1, 2].map(|k| o[k] + d[k] * t);
+        let mut cell = self.cell_of(&p);
+        let mut step = [0isize; 3];
+        let mut next = [f64::INFINITY; 3];
+        let mut delta = [f64::INFINITY; 3];
+        for k in 0..3 {
+            if d[k] != 0.0 {
+                step[k] = if d[k] > 0.0 { 1 } else { -1 };
+                #[allow(clippy::cast_precision_loss)]
+                let face =
+                    self.lo[k] + (cell[k] as f64 + if d[k] > 0.0 { 1.0 } else { 0.0 }) * self.cell;
+                next[k] = (face - o[k]) * ray.inv[k];
+                delta[k] = self.cell * ray.inv[k].abs();
+            }
+        }
+        loop {
+            let k = if next[0] <= next[1] && next[0] <= next[2] {
+                0
+            } else if next[1] <= next[2] {
+                1
+            } else {
+                2
+            };
+            let exit = next[k];
+            if let Some(r) = visit(self.index(cell), t, exit) {
+                return Some(r);
+            }
+            if exit > t1 {
+                return None;
+            }
+            match cell[k].checked_add_signed(step[k]) {
+                Some(s) if s < self.dims[k] => cell[k] = s,
+                _ => return None,
+            }
+            t = exit;
+            next[k] += delta[k];
+        }
+    }
+}
+
 /// A uniform grid over the boxes: each cell lists the boxes that overlap it.
 #[derive(Debug, Clone)]
 pub(crate) struct BoxGrid {
     boxes: Vec<Aabb>,
-    lo: [f64; 3],
-    cell: f64,
-    dims: [usize; 3],
+    lattice: Lattice,
     /// Cell `c`'s boxes are `items[start[c]..start[c + 1]]`.
     start: Vec<usize>,
     items: Vec<u32>,
@@ -116,14 +212,15 @@ impl BoxGrid {
         let dims = ext.map(|e| (e / cell).floor() as usize + 1);
         let mut g = Self {
             boxes: boxes.to_vec(),
-            lo: bounds.lo,
-            cell,
-            dims,
+            lattice: Lattice {
+                lo: bounds.lo,
+                cell,
+                dims,
+            },
             start: Vec::new(),
             items: Vec::new(),
         };
         if boxes.is_empty() {
-            g.dims = [0; 3];
             return g;
         }
         let n = dims[0] * dims[1] * dims[2];
@@ -148,99 +245,43 @@ impl BoxGrid {
 
     /// Calls `f(cell, box)` for every cell each box overlaps.
     fn for_each_cell(&self, mut f: impl FnMut(usize, u32)) {
+        let l = &self.lattice;
         for (i, b) in self.boxes.iter().enumerate() {
-            let a = self.cell_of(&b.lo);
-            let z = self.cell_of(&b.hi);
+            let a = l.cell_of(&b.lo);
+            let z = l.cell_of(&b.hi);
             for x in a[0]..=z[0] {
                 for y in a[1]..=z[1] {
                     for w in a[2]..=z[2] {
                         // Box counts are far below 2³².
                         #[allow(clippy::cast_possible_truncation)]
-                        f(self.index([x, y, w]), i as u32);
+                        f(l.index([x, y, w]), i as u32);
                     }
                 }
             }
         }
     }
 
-    fn cell_of(&self, p: &[f64; 3]) -> [usize; 3] {
-        // Clamped into the grid: the cast is exact.
-        #[allow(
-            clippy::cast_possible_truncation,
-            clippy::cast_sign_loss,
-            clippy::cast_precision_loss
-        )]
-        [0, 1, 2].map(|k| {
-            ((p[k] - self.lo[k]) / self.cell)
-                .floor()
-                .clamp(0.0, (self.dims[k] - 1) as f64) as usize
-        })
-    }
-
-    fn index(&self, c: [usize; 3]) -> usize {
-        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
-    }
-
     /// The distance along `d` from `o` at which the ray enters the first box, if within
     /// `max`; 0 from inside a box. `None` for non-finite input.
     pub(crate) fn cast_ray(&self, o: &Point3<f64>, d: &Vector3<f64>, max: f64) -> Option<f64> {
-        let finite = o.iter().chain(d.iter()).all(|v| v.is_finite());
-        if !finite || max.is_nan() || max < 0.0 || self.boxes.is_empty() {
+        if self.boxes.is_empty() {
             return None;
         }
         let ray = RayData::new(o, d);
-        #[allow(clippy::cast_precision_loss)]
-        let grid = Aabb {
-            lo: self.lo,
-            hi: [0, 1, 2].map(|k| self.lo[k] + self.dims[k] as f64 * self.cell),
-        };
-        let t_in = grid.entry(&ray, max)?;
-        let p = [0, 1, 2].map(|k| o[k] + d[k] * t_in);
-        let mut cell = self.cell_of(&p);
-        let mut next = [f64::INFINITY; 3];
-        let mut delta = [f64::INFINITY; 3];
-        for k in 0..3 {
-            if d[k] != 0.0 {
-                #[allow(clippy::cast_precision_loss)]
-                let face =
-                    self.lo[k] + (cell[k] as f64 + if d[k] > 0.0 { 1.0 } else { 0.0 }) * self.cell;
-                next[k] = (face - o[k]) * ray.inv[k];
-                delta[k] = self.cell * ray.inv[k].abs();
-            }
-        }
         let mut best = max;
         let mut hit = false;
-        loop {
-            let c = self.index(cell);
-            let (a, b) = (self.start[c], self.start[c + 1]);
-            for &i in &self.items[a..b] {
+        // Boxes span several cells: a hit beyond the current cell may still lose to a box
+        // in a later one, so the walk stops only once the best hit lies within it.
+        let found = self.lattice.walk(o, d, max, |c, _, exit| {
+            for &i in &self.items[self.start[c]..self.start[c + 1]] {
                 if let Some(t) = self.boxes[i as usize].entry(&ray, best) {
                     best = t;
                     hit = true;
                 }
             }
-            let k = if next[0] <= next[1] && next[0] <= next[2] {
-                0
-            } else if next[1] <= next[2] {
-                1
-            } else {
-                2
-            };
-            let exit = next[k];
-            if (hit && best <= exit) || exit > best {
-                return hit.then_some(best);
-            }
-            let step = if d[k] > 0.0 {
-                cell[k].checked_add(1)
-            } else {
-                cell[k].checked_sub(1)
-            };
-            match step {
-                Some(s) if s < self.dims[k] => cell[k] = s,
-                _ => return hit.then_some(best),
-            }
-            next[k] += delta[k];
-        }
+            (hit && best <= exit).then_some(best)
+        });
+        found.or(hit.then_some(best))
     }
 }
 

@@ -5,7 +5,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{Compound, Cuboid, SharedShape, Voxels};
 
-use crate::box_grid::{Aabb, BoxGrid};
+use crate::box_grid::{Aabb, BoxGrid, Lattice};
 
 /// Errors building a world.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -39,10 +39,7 @@ enum Geometry {
 /// Occupied voxels as a dense bit grid over their bounding box.
 #[derive(Clone)]
 struct VoxelGrid {
-    size: f64,
-    /// Voxel index of the grid's first cell.
-    min: [i64; 3],
-    dims: [usize; 3],
+    lattice: Lattice,
     bits: Vec<u64>,
 }
 
@@ -62,99 +59,32 @@ impl VoxelGrid {
             .iter()
             .try_fold(1usize, |v, &d| v.checked_mul(d))
             .filter(|&v| v <= 1 << 34)?;
+        // Voxel indices are far inside f64's exact integers.
+        #[allow(clippy::cast_precision_loss)]
+        let lo = min.map(|m| m as f64 * size);
         let mut g = Self {
-            size,
-            min,
-            dims,
+            lattice: Lattice {
+                lo,
+                cell: size,
+                dims,
+            },
             bits: vec![0; volume.div_ceil(64)],
         };
         for c in cells {
-            let i = g.index([0, 1, 2].map(|k| usize::try_from(c[k] - min[k]).unwrap_or(0)));
+            let i = g
+                .lattice
+                .index([0, 1, 2].map(|k| usize::try_from(c[k] - min[k]).unwrap_or(0)));
             g.bits[i >> 6] |= 1 << (i & 63);
         }
         Some(g)
     }
 
-    fn index(&self, c: [usize; 3]) -> usize {
-        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
-    }
-
-    fn occupied(&self, c: [usize; 3]) -> bool {
-        let i = self.index(c);
-        self.bits[i >> 6] & (1 << (i & 63)) != 0
-    }
-
-    /// The first occupied voxel along the ray, by 3-D DDA (Amanatides & Woo): the distance
-    /// at which the ray enters it, within `max`.
+    /// The first occupied voxel along the ray, by 3-D DDA: the distance at which the ray
+    /// enters it, within `max`.
     fn cast_ray(&self, o: &Point3<f64>, d: &Vector3<f64>, max: f64) -> Option<f64> {
-        // Voxel indices are far inside f64's exact integers.
-        #[allow(clippy::cast_precision_loss)]
-        let lo = Vector3::from_fn(|k, _| self.min[k] as f64 * self.size);
-        #[allow(clippy::cast_precision_loss)]
-        let hi = Vector3::from_fn(|k, _| lo[k] + self.dims[k] as f64 * self.size);
-        // Clip [0, max] to the grid's box.
-        let (mut t0, mut t1) = (0.0f64, max);
-        for k in 0..3 {
-            if d[k] == 0.0 {
-                if o[k] < lo[k] || o[k] >= hi[k] {
-                    return None;
-                }
-            } else {
-                let (a, b) = ((lo[k] - o[k]) / d[k], (hi[k] - o[k]) / d[k]);
-                t0 = t0.max(a.min(b));
-                t1 = t1.min(a.max(b));
-            }
-        }
-        if t0.is_nan() || t1.is_nan() || t0 > t1 {
-            return None;
-        }
-        let p = o + d * t0;
-        let mut cell = [0usize; 3];
-        let mut step = [0isize; 3];
-        let mut next = [f64::INFINITY; 3];
-        let mut delta = [f64::INFINITY; 3];
-        for k in 0..3 {
-            // Clamped into the grid, so the cast is exact.
-            #[allow(
-                clippy::cast_possible_truncation,
-                clippy::cast_sign_loss,
-                clippy::cast_precision_loss
-            )]
-            let c = ((p[k] - lo[k]) / self.size)
-                .floor()
-                .clamp(0.0, (self.dims[k] - 1) as f64) as usize;
-            cell[k] = c;
-            if d[k] != 0.0 {
-                step[k] = if d[k] > 0.0 { 1 } else { -1 };
-                #[allow(clippy::cast_precision_loss)]
-                let face = lo[k] + (c as f64 + if d[k] > 0.0 { 1.0 } else { 0.0 }) * self.size;
-                next[k] = (face - o[k]) / d[k];
-                delta[k] = self.size / d[k].abs();
-            }
-        }
-        let mut t = t0;
-        loop {
-            if self.occupied(cell) {
-                return Some(t);
-            }
-            let k = if next[0] <= next[1] && next[0] <= next[2] {
-                0
-            } else if next[1] <= next[2] {
-                1
-            } else {
-                2
-            };
-            t = next[k];
-            if t > t1 {
-                return None;
-            }
-            let c = cell[k].checked_add_signed(step[k])?;
-            if c >= self.dims[k] {
-                return None;
-            }
-            cell[k] = c;
-            next[k] += delta[k];
-        }
+        self.lattice.walk(o, d, max, |i, entry, _| {
+            (self.bits[i >> 6] & (1 << (i & 63)) != 0).then_some(entry)
+        })
     }
 }
 
@@ -188,8 +118,8 @@ impl std::fmt::Debug for World {
                 .finish(),
             Some(Geometry::Voxels(_, g)) => f
                 .debug_struct("World")
-                .field("voxel_size", &g.size)
-                .field("grid", &g.dims)
+                .field("voxel_size", &g.lattice.cell)
+                .field("grid", &g.lattice.dims)
                 .finish(),
             None => f.debug_struct("World").field("boxes", &0).finish(),
         }
