@@ -110,10 +110,11 @@ fn bench_insert(c: &mut Criterion) {
     let known = seen.known_cells();
     let bytes = seen.memory_bytes();
     eprintln!(
-        "map memory: {known} known cells in {} blocks, {bytes} bytes: {:.3} bytes per known cell, {:.3} per allocated cell",
+        "map memory: {known} known cells in {} blocks, {bytes} bytes of storage: {:.3} bytes per known cell, {:.3} per allocated cell; {} bytes of scratch for the next frame",
         seen.allocated_blocks(),
         bytes as f64 / known as f64,
-        bytes as f64 / (seen.allocated_blocks() * 512) as f64
+        bytes as f64 / (seen.allocated_blocks() * 512) as f64,
+        seen.scratch_bytes()
     );
     g.finish();
 }

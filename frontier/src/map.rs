@@ -11,8 +11,14 @@ const BLOCK_BITS: u32 = 3;
 const BLOCK_EDGE: u32 = 1 << BLOCK_BITS;
 const BLOCK_MASK: u32 = BLOCK_EDGE - 1;
 const BLOCK_CELLS: usize = 1 << (3 * BLOCK_BITS);
-const WORDS: usize = BLOCK_CELLS / 64;
 const NO_BLOCK: u32 = u32::MAX;
+/// Layers of 64 cells per block (one `u64` of per-frame marks each).
+const LAYERS: usize = BLOCK_CELLS / 64;
+/// Largest per-frame mark bitsets, in words (16 MiB, three bits per cell of the frame's box);
+/// larger frames are marked slab by slab.
+const MAX_FRAME_WORDS: usize = 1 << 21;
+/// Frames of at least this many rays are marked by two threads.
+const PARALLEL_RAYS: usize = 4096;
 
 /// Log-odds are stored as `i8` in units of 1/32: one byte per cell, probabilities up to
 /// 1 − 0.019 (log-odds ±3.97), steps of 0.03 in log-odds.
@@ -180,7 +186,7 @@ pub struct CellChange {
 /// counted in `truncated`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameUpdate {
-    /// Cells whose state changed, each once, in the order they were updated.
+    /// Cells whose state changed, each once, block by block (a deterministic order).
     pub changed: Vec<CellChange>,
     /// The box of every cell updated (changed or not), `None` for an empty frame.
     pub bbox: Option<CellBox>,
@@ -203,7 +209,9 @@ pub struct FrameUpdate {
 /// Storage is a directory of 8 × 8 × 8-cell blocks over the bounds; a block is allocated when
 /// a ray first touches it, and holds one `i8` log-odds value (units of 1/32) per cell: 1 byte
 /// per cell, see [`VoxelMap::memory_bytes`]. Rays are inserted by 3-D DDA, each cell updated at
-/// most once per frame (a hit wins over a miss, as in OctoMap).
+/// most once per frame (a hit wins over a miss, as in OctoMap); see
+/// [`VoxelMap::insert_frame`] for how, and [`VoxelMap::scratch_bytes`] for the working memory
+/// it keeps.
 ///
 /// # Example
 /// ```
@@ -235,11 +243,19 @@ pub struct VoxelMap {
     /// Known and occupied cells per allocated block.
     known: Vec<u16>,
     occupied: Vec<u16>,
-    /// Per-frame marks, one bit per cell updated in this frame; a block's marks are valid
-    /// while its epoch is the current frame.
-    epoch: Vec<u32>,
-    marks: Vec<[u64; WORDS]>,
-    frame: u32,
+    /// Two bits per cell of the frame's box or slab (ray passed, ray ended), block by block:
+    /// a block's 8 words of passed marks (one per layer of 64 cells), then its 8 words of hits.
+    /// All zero between frames.
+    marks: Vec<u64>,
+    /// The second thread's marks of the rays passed, one bit per cell, block by block.
+    spare: Vec<u64>,
+    /// Frames of at least this many rays are split between two threads
+    /// ([`PARALLEL_RAYS`]; tests lower it).
+    parallel_rays: usize,
+    /// The largest mark bitset in words ([`MAX_FRAME_WORDS`]; tests lower it).
+    max_frame_words: usize,
+    /// The blocks a frame marked: slot, block in the slab, lowest cell.
+    work: Vec<(usize, usize, Cell)>,
     rays: Vec<(Point3<f64>, bool)>,
 }
 
@@ -274,9 +290,11 @@ impl VoxelMap {
             cells: Vec::new(),
             known: Vec::new(),
             occupied: Vec::new(),
-            epoch: Vec::new(),
             marks: Vec::new(),
-            frame: 0,
+            spare: Vec::new(),
+            parallel_rays: PARALLEL_RAYS,
+            max_frame_words: MAX_FRAME_WORDS,
+            work: Vec::new(),
             rays: Vec::new(),
         })
     }
@@ -303,11 +321,23 @@ impl VoxelMap {
         x as usize + bx as usize * (y as usize + by as usize * z as usize)
     }
 
+    /// The index of a cell in its block: x fastest, then y, then z; each z layer of 64 cells
+    /// is one cache line and one word of per-frame marks.
     #[inline]
     fn index_in_block(c: Cell) -> usize {
         ((c.x & BLOCK_MASK)
             | ((c.y & BLOCK_MASK) << BLOCK_BITS)
             | ((c.z & BLOCK_MASK) << (2 * BLOCK_BITS))) as usize
+    }
+
+    /// The cell at `index` of the block whose lowest cell is `corner`.
+    #[inline]
+    fn cell_in_block(corner: Cell, index: u32) -> Cell {
+        Cell::new(
+            corner.x | (index & BLOCK_MASK),
+            corner.y | ((index >> BLOCK_BITS) & BLOCK_MASK),
+            corner.z | (index >> (2 * BLOCK_BITS)),
+        )
     }
 
     #[inline]
@@ -374,15 +404,23 @@ impl VoxelMap {
         self.known.len()
     }
 
-    /// Bytes the map holds on the heap: cell storage (1 byte per cell of an allocated block),
-    /// the block directory, per-block counters, the per-frame marks and the ray buffer.
+    /// Bytes the map's storage holds on the heap: the cells (1 byte per cell of an allocated
+    /// block), the block directory and the per-block counters. See also
+    /// [`VoxelMap::scratch_bytes`].
     pub fn memory_bytes(&self) -> usize {
         use core::mem::size_of;
         self.cells.capacity() * size_of::<[i8; BLOCK_CELLS]>()
             + self.directory.capacity() * size_of::<u32>()
             + (self.known.capacity() + self.occupied.capacity()) * size_of::<u16>()
-            + self.epoch.capacity() * size_of::<u32>()
-            + self.marks.capacity() * size_of::<[u64; WORDS]>()
+    }
+
+    /// Bytes of working memory kept between frames for inserting the next one: the marks of
+    /// the largest frame so far (three bits per cell of its box, at most 16 MiB), the list of
+    /// its blocks and the ray buffer.
+    pub fn scratch_bytes(&self) -> usize {
+        use core::mem::size_of;
+        (self.marks.capacity() + self.spare.capacity()) * size_of::<u64>()
+            + self.work.capacity() * size_of::<(usize, usize, Cell)>()
             + self.rays.capacity() * size_of::<(Point3<f64>, bool)>()
     }
 
@@ -393,61 +431,20 @@ impl VoxelMap {
         {
             self.directory[dir] = b as u32;
         }
-        if self.cells.capacity() == self.cells.len() {
-            // Grow by a quarter rather than double: cell storage dominates the map's memory.
-            let more = (self.cells.len() / 4).max(16);
-            self.cells.reserve_exact(more);
-            self.marks.reserve_exact(more);
-        }
+        self.reserve_blocks(1);
         self.cells.push([UNKNOWN; BLOCK_CELLS]);
         self.known.push(0);
         self.occupied.push(0);
-        self.epoch.push(0);
-        self.marks.push([0; WORDS]);
         b
     }
 
-    /// The block behind directory entry `dir`, allocated if needed, with its marks valid for
-    /// this frame.
-    #[inline]
-    fn frame_block(&mut self, dir: usize) -> usize {
-        let b = match self.directory[dir] {
-            NO_BLOCK => self.allocate(dir),
-            b => b as usize,
-        };
-        if self.epoch[b] != self.frame {
-            self.epoch[b] = self.frame;
-            self.marks[b] = [0; WORDS];
+    /// Room for `n` more blocks.
+    fn reserve_blocks(&mut self, n: usize) {
+        if self.cells.capacity() - self.cells.len() < n {
+            // Grow by a quarter rather than double: cell storage dominates the map's memory.
+            let more = (self.cells.len() / 4).max(16).max(n);
+            self.cells.reserve_exact(more);
         }
-        b
-    }
-
-    /// Applies one hit or miss to a cell of block `b`; returns the change, if any.
-    #[inline(always)]
-    fn apply(&mut self, b: usize, index: usize, hit: bool) -> Option<(CellState, CellState)> {
-        let v = &mut self.cells[b][index];
-        let old = *v;
-        let new = match (old == UNKNOWN, hit) {
-            (true, true) => self.hit.min(self.hi),
-            (true, false) => self.miss.max(self.lo),
-            (false, true) => old.saturating_add(self.hit).min(self.hi),
-            (false, false) => old.saturating_add(self.miss).max(self.lo),
-        };
-        *v = new;
-        let (before, after) = (Self::state_of(old), Self::state_of(new));
-        if before == after {
-            return None;
-        }
-        if before == CellState::Unknown {
-            self.known[b] += 1;
-        }
-        if before == CellState::Occupied {
-            self.occupied[b] -= 1;
-        }
-        if after == CellState::Occupied {
-            self.occupied[b] += 1;
-        }
-        Some((before, after))
     }
 
     /// Inserts one frame: a sensor origin and the measured points, both in the world frame \[m\].
@@ -456,6 +453,13 @@ impl VoxelMap {
     /// cell as occupied; rays longer than [`MapConfig::max_range`] clear free space up to the
     /// range and mark no hit; rays leaving the bounds stop there and mark no hit. Each cell is
     /// updated at most once per frame, a hit taking precedence over a miss.
+    ///
+    /// The rays' cells are first marked in a bitset over the frame's box (by 3-D DDA), then
+    /// every marked cell is updated once, block by block in storage order. Frames of at least
+    /// 4096 rays are marked and updated by two threads of rayon's pool; the result is the
+    /// same, bit for bit, for any split and any number of threads. A bitset larger than
+    /// 16 MiB is not kept: such frames are marked in slabs of whole block layers, each walking
+    /// the rays that reach it.
     ///
     /// # Errors
     /// [`FrontierError::NonFinite`] for a NaN or infinite origin,
@@ -473,12 +477,6 @@ impl VoxelMap {
         }
         if !self.grid.bounds().contains(origin) {
             return Err(FrontierError::OriginOutsideBounds);
-        }
-        self.frame = self.frame.wrapping_add(1);
-        if self.frame == 0 {
-            // Epochs wrapped: forget every old mark.
-            self.epoch.fill(0);
-            self.frame = 1;
         }
         let mut out = FrameUpdate::default();
         let mut rays = core::mem::take(&mut self.rays);
@@ -512,63 +510,172 @@ impl VoxelMap {
         for (end, _) in &rays {
             bbox.grow(self.grid.clamp_cell(self.grid.grid_coords(end)));
         }
-        if !rays.is_empty() {
-            out.bbox = Some(bbox);
+        if rays.is_empty() {
+            self.rays = rays;
+            return Ok(out);
         }
-        // Hits first, so a cell hit in this frame is not also cleared by another ray.
-        for &(end, hit) in &rays {
-            if hit {
-                let c = self.grid.clamp_cell(self.grid.grid_coords(&end));
-                let b = self.frame_block(self.directory_index(c));
-                self.mark_and_apply(b, c, true, &mut out);
-            }
-        }
-        // Walk rays in the order of their end blocks (Morton order): neighbouring rays share
-        // blocks and cache lines, whatever order the sensor delivered them in.
-        let grid = self.grid;
-        rays.sort_by_cached_key(|(end, _)| morton(grid.clamp_cell(grid.grid_coords(end))));
-        for (end, _) in &rays {
-            self.walk_free(origin, end, &mut out);
+        out.bbox = Some(bbox);
+        // The frame's box in blocks, marked in slabs of whole block layers.
+        let lo = [bbox.min.x, bbox.min.y, bbox.min.z].map(|v| v >> BLOCK_BITS);
+        let hi = [bbox.max.x, bbox.max.y, bbox.max.z].map(|v| v >> BLOCK_BITS);
+        let dims = [0, 1, 2].map(|k| (hi[k] - lo[k] + 1) as usize);
+        let depth = (self.max_frame_words / (3 * LAYERS * dims[0] * dims[1])).clamp(1, dims[2]);
+        // Depths are at most the box's block count along z, a u32.
+        #[allow(clippy::cast_possible_truncation)]
+        let depth = depth as u32;
+        let mut z0 = lo[2];
+        while z0 <= hi[2] {
+            let z1 = z0.saturating_add(depth - 1).min(hi[2]);
+            let slab = Slab {
+                lo: [lo[0], lo[1], z0],
+                dims: [dims[0], dims[1], (z1 - z0 + 1) as usize],
+            };
+            self.insert_slab(origin, &rays, &slab, &mut out);
+            z0 = z1 + 1;
         }
         self.rays = rays;
         Ok(out)
     }
 
-    /// Updates every cell from `origin` to `end` as free, unless this frame updated it already.
-    fn walk_free(&mut self, origin: &Point3<f64>, end: &Point3<f64>, out: &mut FrameUpdate) {
-        let mut w = BlockWalk::new(self, origin, end);
-        let mut b = self.frame_block(w.dir);
-        self.mark_and_apply(b, w.walk.cell(), false, out);
-        while let Some(entered) = w.advance() {
-            if entered {
-                b = self.frame_block(w.dir);
-            }
-            self.mark_and_apply(b, w.walk.cell(), false, out);
-        }
-    }
-
-    /// Updates cell `c` of block `b` unless this frame updated it already.
-    #[inline(always)]
-    fn mark_and_apply(&mut self, b: usize, c: Cell, hit: bool, out: &mut FrameUpdate) {
-        let i = Self::index_in_block(c);
-        let (w, bit) = (i >> 6, 1u64 << (i & 63));
-        let marks = &mut self.marks[b][w];
-        if *marks & bit != 0 {
-            return;
-        }
-        *marks |= bit;
-        if hit {
-            out.hit_cells += 1;
+    /// Updates the cells of a frame that lie in one slab of its box: marks the cells of every
+    /// ray, updates the marked cells layer by layer as misses, then the hit cells. Marking
+    /// alone keeps the walk in the small bitset; the log-odds are then read and written once
+    /// per cell, in memory order.
+    fn insert_slab(
+        &mut self,
+        origin: &Point3<f64>,
+        rays: &[(Point3<f64>, bool)],
+        slab: &Slab,
+        out: &mut FrameUpdate,
+    ) {
+        let grid = self.grid;
+        let mut marks = core::mem::take(&mut self.marks);
+        let mut spare = core::mem::take(&mut self.spare);
+        marks.resize(2 * LAYERS * slab.blocks(), 0);
+        // Large frames are marked and updated by two threads; the union of the marks, and so
+        // the result, does not depend on how the work is split.
+        let split = rays.len() >= self.parallel_rays;
+        if split {
+            spare.resize(LAYERS * slab.blocks(), 0);
+            let (first, second) = rays.split_at(rays.len() / 2);
+            rayon::join(
+                || mark_rays(&grid, origin, first, slab, &mut marks, 2 * LAYERS),
+                || mark_rays(&grid, origin, second, slab, &mut spare, LAYERS),
+            );
         } else {
-            out.free_cells += 1;
+            mark_rays(&grid, origin, rays, slab, &mut marks, 2 * LAYERS);
         }
-        if let Some((before, after)) = self.apply(b, i, hit) {
-            out.changed.push(CellChange {
-                cell: c,
-                before,
-                after,
-            });
+        for (end, _) in rays.iter().filter(|(_, hit)| *hit) {
+            if let Some((block, layer, bit)) = slab.mark(grid.clamp_cell(grid.grid_coords(end))) {
+                marks[2 * LAYERS * block + LAYERS + layer] |= bit;
+            }
         }
+        let words = |block: usize| {
+            let own = &marks[2 * LAYERS * block..2 * LAYERS * (block + 1)];
+            let mut passed = [0; LAYERS];
+            let mut hits = [0; LAYERS];
+            for layer in 0..LAYERS {
+                passed[layer] = own[layer];
+                hits[layer] = own[LAYERS + layer];
+                if split {
+                    passed[layer] |= spare[LAYERS * block + layer];
+                }
+            }
+            (passed, hits)
+        };
+        // The blocks with marks, updated in the order of their storage so that memory is read
+        // forwards.
+        let mut work = core::mem::take(&mut self.work);
+        work.clear();
+        let [nx, ny, _] = slab.dims;
+        for block in 0..slab.blocks() {
+            let (passed, hits) = words(block);
+            if passed.iter().chain(&hits).fold(0, |a, &m| a | m) == 0 {
+                continue;
+            }
+            // Block coordinates come from u32 cell coordinates.
+            #[allow(clippy::cast_possible_truncation)]
+            let corner = Cell::new(
+                (slab.lo[0] + (block % nx) as u32) << BLOCK_BITS,
+                (slab.lo[1] + ((block / nx) % ny) as u32) << BLOCK_BITS,
+                (slab.lo[2] + (block / (nx * ny)) as u32) << BLOCK_BITS,
+            );
+            work.push((
+                self.directory[self.directory_index(corner)] as usize,
+                block,
+                corner,
+            ));
+        }
+        // New blocks, with the storage grown once for all of them.
+        let new = work.iter().filter(|w| w.0 == NO_BLOCK as usize).count();
+        if new > 0 {
+            self.reserve_blocks(new);
+            for w in work.iter_mut().filter(|w| w.0 == NO_BLOCK as usize) {
+                w.0 = self.allocate(self.directory_index(w.2));
+            }
+        }
+        work.sort_unstable_by_key(|&(b, _, _)| b);
+        let model = Model {
+            hit: self.hit,
+            miss: self.miss,
+            lo: self.lo,
+            hi: self.hi,
+        };
+        // Updates the blocks of `work`, whose storage starts at slot `first`.
+        let update = |work: &[(usize, usize, Cell)],
+                      cells: &mut [[i8; BLOCK_CELLS]],
+                      known: &mut [u16],
+                      occupied: &mut [u16],
+                      first: usize| {
+            let mut done = Updated::default();
+            for &(b, block, corner) in work {
+                let (passed, hits) = words(block);
+                let mut storage = BlockMut {
+                    cells: &mut cells[b - first],
+                    known: &mut known[b - first],
+                    occupied: &mut occupied[b - first],
+                };
+                update_block(&mut storage, corner, &passed, &hits, model, &mut done);
+            }
+            done
+        };
+        let done = if split && work.len() >= 2 {
+            let (first, second) = work.split_at(work.len() / 2);
+            let at = second[0].0;
+            let (c0, c1) = self.cells.split_at_mut(at);
+            let (k0, k1) = self.known.split_at_mut(at);
+            let (o0, o1) = self.occupied.split_at_mut(at);
+            let (mut a, b) = rayon::join(
+                || update(first, c0, k0, o0, 0),
+                || update(second, c1, k1, o1, at),
+            );
+            a.append(b);
+            a
+        } else {
+            update(
+                &work,
+                &mut self.cells,
+                &mut self.known,
+                &mut self.occupied,
+                0,
+            )
+        };
+        out.free_cells += done.free;
+        out.hit_cells += done.hits;
+        if out.changed.is_empty() {
+            out.changed = done.changed;
+        } else {
+            out.changed.extend(done.changed);
+        }
+        for &(_, block, _) in &work {
+            marks[2 * LAYERS * block..2 * LAYERS * (block + 1)].fill(0);
+            if split {
+                spare[LAYERS * block..LAYERS * (block + 1)].fill(0);
+            }
+        }
+        self.work = work;
+        self.marks = marks;
+        self.spare = spare;
     }
 
     /// Whether the segment from `a` to `b` passes only through known-free cells (both end cells
@@ -707,17 +814,14 @@ impl VoxelMap {
                 ((dir / bx as usize) % by as usize) as u32,
                 (dir / (bx as usize * by as usize)) as u32,
             );
+            let corner = Cell::new(x0 << BLOCK_BITS, y0 << BLOCK_BITS, z0 << BLOCK_BITS);
             for (i, &v) in self.cells[b as usize].iter().enumerate() {
                 if v == UNKNOWN {
                     continue;
                 }
+                // Block indices are below 512.
                 #[allow(clippy::cast_possible_truncation)]
-                let i = i as u32;
-                let c = Cell::new(
-                    (x0 << BLOCK_BITS) | (i & BLOCK_MASK),
-                    (y0 << BLOCK_BITS) | ((i >> BLOCK_BITS) & BLOCK_MASK),
-                    (z0 << BLOCK_BITS) | (i >> (2 * BLOCK_BITS)),
-                );
+                let c = Self::cell_in_block(corner, i as u32);
                 f(c, Self::state_of(v));
             }
         }
@@ -769,19 +873,199 @@ impl BlockWalk {
     }
 }
 
-/// The Morton (Z-order) code of a cell's block.
-fn morton(c: Cell) -> u64 {
-    fn spread(v: u32) -> u64 {
-        // Interleave the 21 low bits of v with two zero bits each.
-        let mut x = u64::from(v) & 0x1f_ffff;
-        x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
-        x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
-        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-        x = (x | (x << 2)) & 0x1249_2492_4924_9249;
-        x
+/// One slab of a frame's box, in blocks: the part whose marks are held at once, one `u64`
+/// per layer of 64 cells, block by block.
+struct Slab {
+    /// Lowest block on every axis.
+    lo: [u32; 3],
+    /// Blocks along every axis.
+    dims: [usize; 3],
+}
+
+impl Slab {
+    /// Blocks in the slab.
+    fn blocks(&self) -> usize {
+        self.dims.iter().product()
     }
-    spread(c.x >> BLOCK_BITS) | (spread(c.y >> BLOCK_BITS) << 1) | (spread(c.z >> BLOCK_BITS) << 2)
+
+    /// The block (in the slab), layer and bit of cell `c`'s mark, `None` outside the slab.
+    #[inline(always)]
+    fn mark(&self, c: Cell) -> Option<(usize, usize, u64)> {
+        let r = |v: u32, k: usize| (v >> BLOCK_BITS).wrapping_sub(self.lo[k]) as usize;
+        let (x, y, z) = (r(c.x, 0), r(c.y, 1), r(c.z, 2));
+        if x >= self.dims[0] || y >= self.dims[1] || z >= self.dims[2] {
+            return None;
+        }
+        let block = x + self.dims[0] * (y + self.dims[1] * z);
+        let i = VoxelMap::index_in_block(c);
+        Some((block, i >> 6, 1u64 << (i & 63)))
+    }
+}
+
+/// Marks the cells of the rays from `origin` to each end that lie in `slab`: the bit of a cell
+/// in word `stride · block + layer` of `words`.
+fn mark_rays(
+    grid: &Grid,
+    origin: &Point3<f64>,
+    rays: &[(Point3<f64>, bool)],
+    slab: &Slab,
+    words: &mut [u64],
+    stride: usize,
+) {
+    let oz = grid.clamp_cell(grid.grid_coords(origin)).z >> BLOCK_BITS;
+    let (z0, depth) = (slab.lo[2], slab.dims[2]);
+    for (end, _) in rays {
+        let ez = grid.clamp_cell(grid.grid_coords(end)).z >> BLOCK_BITS;
+        // The cells of a segment lie in the box of its end cells.
+        if oz.max(ez) < z0 || (oz.min(ez).max(z0) - z0) as usize >= depth {
+            continue;
+        }
+        let mut walk = Walk::new(grid, origin, end);
+        loop {
+            if let Some((block, layer, bit)) = slab.mark(walk.cell()) {
+                words[stride * block + layer] |= bit;
+            }
+            if walk.advance().is_none() {
+                break;
+            }
+        }
+    }
+}
+
+/// The byte mask of a bit mask: lane `j` is `0xff` when bit `j` is set.
+fn expand(mask: u64) -> [u8; 64] {
+    /// The eight lanes of each byte of a mask.
+    const LANES: [u64; 256] = {
+        let mut t = [0u64; 256];
+        let mut byte = 0;
+        while byte < 256 {
+            let mut bit = 0;
+            while bit < 8 {
+                if byte >> bit & 1 == 1 {
+                    t[byte] |= 0xff << (8 * bit);
+                }
+                bit += 1;
+            }
+            byte += 1;
+        }
+        t
+    };
+    let mut out = [0u8; 64];
+    for (lanes, byte) in out.chunks_exact_mut(8).zip(mask.to_le_bytes()) {
+        lanes.copy_from_slice(&LANES[usize::from(byte)].to_le_bytes());
+    }
+    out
+}
+
+/// 0 for unknown, 1 for free, 2 for occupied (see [`VoxelMap::state_of`]).
+#[inline(always)]
+fn class(v: i8) -> u8 {
+    u8::from(v != UNKNOWN) + u8::from(v >= 0)
+}
+
+/// The quantised sensor model: log-odds steps and clamps, in units of 1/32.
+#[derive(Debug, Clone, Copy)]
+struct Model {
+    hit: i8,
+    miss: i8,
+    lo: i8,
+    hi: i8,
+}
+
+/// One block's storage, borrowed for an update.
+struct BlockMut<'a> {
+    cells: &'a mut [i8; BLOCK_CELLS],
+    known: &'a mut u16,
+    occupied: &'a mut u16,
+}
+
+/// What updating a run of blocks did.
+#[derive(Debug, Default)]
+struct Updated {
+    changed: Vec<CellChange>,
+    free: usize,
+    hits: usize,
+}
+
+impl Updated {
+    fn append(&mut self, other: Self) {
+        self.changed.extend(other.changed);
+        self.free += other.free;
+        self.hits += other.hits;
+    }
+}
+
+/// Updates the marked cells of one block (lowest cell `corner`): a hit for the cells marked
+/// in `hits`, a miss for the others marked in `passed` (a hit wins over a miss, as in OctoMap).
+fn update_block(
+    block: &mut BlockMut<'_>,
+    corner: Cell,
+    passed: &[u64; LAYERS],
+    hits: &[u64; LAYERS],
+    model: Model,
+    out: &mut Updated,
+) {
+    let (layers, _) = block.cells.as_chunks_mut::<64>();
+    for (layer, cells) in layers.iter_mut().enumerate() {
+        let (h, m) = (hits[layer], passed[layer] & !hits[layer]);
+        if h | m == 0 {
+            continue;
+        }
+        out.hits += h.count_ones() as usize;
+        out.free += m.count_ones() as usize;
+        let old = *cells;
+        let (hit_lanes, miss_lanes) = (expand(h), expand(m));
+        // Lane by lane without branches, so the compiler can use vector instructions.
+        let mut changed = [0u8; 64];
+        for j in 0..64 {
+            let v = old[j];
+            let missed = if v == UNKNOWN {
+                model.miss.max(model.lo)
+            } else {
+                v.saturating_add(model.miss).max(model.lo)
+            };
+            let hit = if v == UNKNOWN {
+                model.hit.min(model.hi)
+            } else {
+                v.saturating_add(model.hit).min(model.hi)
+            };
+            let new = if hit_lanes[j] != 0 {
+                hit
+            } else if miss_lanes[j] != 0 {
+                missed
+            } else {
+                v
+            };
+            cells[j] = new;
+            changed[j] = u8::from(class(v) != class(new));
+        }
+        if changed.iter().all(|&c| c == 0) {
+            continue;
+        }
+        for j in 0..64 {
+            if changed[j] == 0 {
+                continue;
+            }
+            let (before, after) = (VoxelMap::state_of(old[j]), VoxelMap::state_of(cells[j]));
+            if before == CellState::Unknown {
+                *block.known += 1;
+            }
+            if before == CellState::Occupied {
+                *block.occupied -= 1;
+            }
+            if after == CellState::Occupied {
+                *block.occupied += 1;
+            }
+            // Layer and lane indices are below 512.
+            #[allow(clippy::cast_possible_truncation)]
+            let index = ((layer << 6) | j) as u32;
+            out.changed.push(CellChange {
+                cell: VoxelMap::cell_in_block(corner, index),
+                before,
+                after,
+            });
+        }
+    }
 }
 
 /// Squared distance, in cell units, from grid point `g` to the cube of cell `c`.
@@ -884,6 +1168,73 @@ mod tests {
         let l = m.probability(free_once).unwrap();
         assert!((l - 0.4).abs() < 1e-3, "{l}");
         assert_eq!(u.changed.len(), u.hit_cells + u.free_cells);
+    }
+
+    /// Everything an insertion leaves: the known cells with their log-odds, and the update
+    /// with its changes as a set.
+    fn outcome(m: &VoxelMap, u: &FrameUpdate) -> (Vec<(Cell, Option<f64>)>, Vec<String>) {
+        let mut cells = Vec::new();
+        m.for_each_known(|c, _| cells.push((c, m.probability(c))));
+        cells.sort_by_key(|(c, _)| *c);
+        let mut changes: Vec<String> = u.changed.iter().map(|c| format!("{c:?}")).collect();
+        changes.sort();
+        let counts = format!("{} {} {} {:?}", u.rays, u.hit_cells, u.free_cells, u.bbox);
+        changes.push(counts);
+        (cells, changes)
+    }
+
+    proptest::proptest! {
+        /// Two threads and a bitset cut into slabs give the same map and the same changes as
+        /// one thread and one bitset.
+        #[test]
+        fn threads_and_slabs_change_nothing(
+            seed in 0u64..1000,
+            origins in proptest::collection::vec((0.5f64..7.5, 0.5f64..5.5, 0.2f64..2.8), 1..4),
+            rays in 1usize..400,
+            slab_words in 1usize..2000,
+        ) {
+            let mut one = map();
+            let mut split = map();
+            split.parallel_rays = 1;
+            split.max_frame_words = slab_words;
+            let mut state = seed;
+            for &(x, y, z) in &origins {
+                let o = Point3::new(x, y, z);
+                let points: Vec<Point3<f64>> = (0..rays)
+                    .map(|_| {
+                        // A small LCG: points anywhere, some beyond the bounds or the range.
+                        let mut next = || {
+                            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                            (state >> 11) as f64 / (1u64 << 53) as f64
+                        };
+                        Point3::new(-30.0 + 70.0 * next(), -30.0 + 70.0 * next(), -3.0 + 9.0 * next())
+                    })
+                    .collect();
+                let a = one.insert_frame(&o, &points).unwrap();
+                let b = split.insert_frame(&o, &points).unwrap();
+                proptest::prop_assert_eq!(outcome(&one, &a), outcome(&split, &b));
+            }
+        }
+    }
+
+    #[test]
+    fn a_large_frame_uses_two_threads_and_matches_one() {
+        let mut one = map();
+        one.parallel_rays = usize::MAX;
+        let mut two = map();
+        let o = Point3::new(4.0, 3.0, 1.5);
+        let points: Vec<Point3<f64>> = (0..PARALLEL_RAYS + 100)
+            .map(|i| {
+                let a = 2.399_963 * i as f64;
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / (PARALLEL_RAYS + 100) as f64;
+                let r = (1.0 - z * z).sqrt();
+                o + 4.0 * Vector3::new(r * a.cos(), r * a.sin(), z)
+            })
+            .collect();
+        let a = one.insert_frame(&o, &points).unwrap();
+        let b = two.insert_frame(&o, &points).unwrap();
+        assert!(a.free_cells > 1000);
+        assert_eq!(outcome(&one, &a), outcome(&two, &b));
     }
 
     #[test]
