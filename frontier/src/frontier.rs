@@ -463,32 +463,54 @@ impl CellSet {
     fn take_neighbours(&mut self, c: Cell, out: &mut Vec<Cell>) {
         match self {
             Self::Bits { min, dims, bits } => {
-                // Local coordinates; neighbours outside the box are skipped.
-                let l = [
-                    i64::from(c.x) - i64::from(min[0]),
-                    i64::from(c.y) - i64::from(min[1]),
-                    i64::from(c.z) - i64::from(min[2]),
-                ];
-                for d in &NEIGHBOURS_26 {
-                    let n = [0, 1, 2].map(|k| l[k] + i64::from(d[k]));
-                    let inside = (0..3).all(|k| usize::try_from(n[k]).is_ok_and(|v| v < dims[k]));
-                    if !inside {
-                        continue;
-                    }
-                    // Inside the box: non-negative and below the grid's u32 sizes, so the casts
-                    // are exact.
+                // The range of local coordinates within one of `c` along axis k, clipped to
+                // the box (empty when `c` is further out).
+                let span = |k: usize, v: u32| {
+                    let l = i64::from(v) - i64::from(min[k]);
+                    let hi = (l + 1).min(dims[k] as i64 - 1);
+                    // Clipped to [0, dims − 1], so the casts are exact.
                     #[allow(clippy::cast_sign_loss, clippy::cast_possible_truncation)]
-                    let n = n.map(|v| v as usize);
-                    let i = n[0] + dims[0] * (n[1] + dims[1] * n[2]);
-                    let (w, bit) = (i >> 6, 1u64 << (i & 63));
-                    if bits[w] & bit != 0 {
-                        bits[w] &= !bit;
-                        #[allow(clippy::cast_possible_truncation)]
-                        out.push(Cell::new(
-                            min[0] + n[0] as u32,
-                            min[1] + n[1] as u32,
-                            min[2] + n[2] as u32,
-                        ));
+                    let r = ((l - 1).max(0) as usize, hi as usize, hi >= (l - 1).max(0));
+                    r
+                };
+                let ((x0, x1, xs), (y0, y1, ys), (z0, z1, zs)) =
+                    (span(0, c.x), span(1, c.y), span(2, c.z));
+                if !(xs && ys && zs) {
+                    return;
+                }
+                // The up to three neighbours along x in each of the nine rows are adjacent
+                // bits: one window per row.
+                let width = x1 - x0 + 1;
+                let local = |k: usize, v: u32| v.wrapping_sub(min[k]) as usize;
+                let (lx, ly, lz) = (local(0, c.x), local(1, c.y), local(2, c.z));
+                // The bit of `c` in its row's window, when `c` is in the box.
+                let centre = (lx >= x0 && lx <= x1).then(|| lx - x0);
+                for z in z0..=z1 {
+                    for y in y0..=y1 {
+                        let i0 = x0 + dims[0] * (y + dims[1] * z);
+                        let (w, off) = (i0 >> 6, i0 & 63);
+                        let mut window = bits[w] >> off;
+                        if off + width > 64 {
+                            window |= bits[w + 1] << (64 - off);
+                        }
+                        window &= (1u64 << width) - 1;
+                        if let Some(j) = centre.filter(|_| (y, z) == (ly, lz)) {
+                            // `c` itself is no neighbour.
+                            window &= !(1u64 << j);
+                        }
+                        while window != 0 {
+                            let j = window.trailing_zeros() as usize;
+                            window &= window - 1;
+                            let i = i0 + j;
+                            bits[i >> 6] &= !(1u64 << (i & 63));
+                            // Inside the box: below the grid's u32 sizes, so the casts are exact.
+                            #[allow(clippy::cast_possible_truncation)]
+                            out.push(Cell::new(
+                                min[0] + (x0 + j) as u32,
+                                min[1] + y as u32,
+                                min[2] + z as u32,
+                            ));
+                        }
                     }
                 }
             }
