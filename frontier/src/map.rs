@@ -231,10 +231,7 @@ pub struct FrameUpdate {
 pub struct VoxelMap {
     config: MapConfig,
     grid: Grid,
-    hit: i8,
-    miss: i8,
-    lo: i8,
-    hi: i8,
+    model: Model,
     block_dims: [u32; 3],
     /// Block slot per directory entry, or `NO_BLOCK`.
     directory: Vec<u32>,
@@ -279,10 +276,12 @@ impl VoxelMap {
         let block_dims = dims.map(|n| n.div_ceil(BLOCK_EDGE));
         let blocks = block_dims.iter().map(|&b| b as usize).product::<usize>();
         Ok(Self {
-            hit: quantize(logit(config.prob_hit)),
-            miss: quantize(logit(config.prob_miss)),
-            lo: quantize(logit(config.clamp_min)),
-            hi: quantize(logit(config.clamp_max)),
+            model: Model {
+                hit: quantize(logit(config.prob_hit)),
+                miss: quantize(logit(config.prob_miss)),
+                lo: quantize(logit(config.clamp_min)),
+                hi: quantize(logit(config.clamp_max)),
+            },
             config,
             grid,
             block_dims,
@@ -587,19 +586,12 @@ impl VoxelMap {
         // forwards.
         let mut work = core::mem::take(&mut self.work);
         work.clear();
-        let [nx, ny, _] = slab.dims;
         for block in 0..slab.blocks() {
             let (passed, hits) = words(block);
             if passed.iter().chain(&hits).fold(0, |a, &m| a | m) == 0 {
                 continue;
             }
-            // Block coordinates come from u32 cell coordinates.
-            #[allow(clippy::cast_possible_truncation)]
-            let corner = Cell::new(
-                (slab.lo[0] + (block % nx) as u32) << BLOCK_BITS,
-                (slab.lo[1] + ((block / nx) % ny) as u32) << BLOCK_BITS,
-                (slab.lo[2] + (block / (nx * ny)) as u32) << BLOCK_BITS,
-            );
+            let corner = slab.corner(block);
             work.push((
                 self.directory[self.directory_index(corner)] as usize,
                 block,
@@ -615,12 +607,7 @@ impl VoxelMap {
             }
         }
         work.sort_unstable_by_key(|&(b, _, _)| b);
-        let model = Model {
-            hit: self.hit,
-            miss: self.miss,
-            lo: self.lo,
-            hi: self.hi,
-        };
+        let model = self.model;
         // Updates the blocks of `work`, whose storage starts at slot `first`.
         let update = |work: &[(usize, usize, Cell)],
                       cells: &mut [[i8; BLOCK_CELLS]],
@@ -886,6 +873,19 @@ impl Slab {
     /// Blocks in the slab.
     fn blocks(&self) -> usize {
         self.dims.iter().product()
+    }
+
+    /// The lowest cell of block `block` of the slab.
+    fn corner(&self, block: usize) -> Cell {
+        let [nx, ny, _] = self.dims;
+        // Block coordinates come from u32 cell coordinates.
+        #[allow(clippy::cast_possible_truncation)]
+        let c = Cell::new(
+            (self.lo[0] + (block % nx) as u32) << BLOCK_BITS,
+            (self.lo[1] + ((block / nx) % ny) as u32) << BLOCK_BITS,
+            (self.lo[2] + (block / (nx * ny)) as u32) << BLOCK_BITS,
+        );
+        c
     }
 
     /// The block (in the slab), layer and bit of cell `c`'s mark, `None` outside the slab.
