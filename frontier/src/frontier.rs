@@ -3,10 +3,11 @@
 use std::collections::BTreeMap;
 
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashSet;
 
 use crate::grid::{Cell, FACES, Grid, MAX_CELLS_PER_AXIS, NEIGHBOURS_26};
 use crate::map::{CellState, FrameUpdate, VoxelMap};
+use crate::owners::Owners;
 use crate::{FrontierError, Result};
 
 /// Settings of frontier clustering. Defaults follow FUEL (clusters split until every cell is
@@ -172,9 +173,14 @@ pub struct FrontierDelta {
 #[derive(Debug, Clone)]
 pub struct Frontiers {
     config: FrontierConfig,
-    clusters: BTreeMap<ClusterId, Cluster>,
-    /// Every frontier cell (by key) and its cluster.
-    owner: FxHashMap<u64, ClusterId>,
+    /// Every cluster and the handle its cells are stored under in `owners`.
+    clusters: BTreeMap<ClusterId, (u32, Cluster)>,
+    /// Every frontier cell and the handle of its cluster.
+    owners: Owners,
+    /// The cluster of each handle in use.
+    handles: Vec<ClusterId>,
+    /// Handles of removed clusters, ready for reuse.
+    free_handles: Vec<u32>,
     next_id: u64,
 }
 
@@ -188,7 +194,9 @@ impl Frontiers {
         Ok(Self {
             config,
             clusters: BTreeMap::new(),
-            owner: FxHashMap::default(),
+            owners: Owners::default(),
+            handles: Vec::new(),
+            free_handles: Vec::new(),
             next_id: 0,
         })
     }
@@ -210,17 +218,18 @@ impl Frontiers {
 
     /// Whether `c` is currently a tracked frontier cell.
     pub fn is_frontier(&self, c: Cell) -> bool {
-        self.owner.contains_key(&c.key())
+        self.owners.get(c).is_some()
     }
 
     /// Number of frontier cells.
     pub fn frontier_len(&self) -> usize {
-        self.owner.len()
+        self.owners.len()
     }
 
     /// Every frontier cell, sorted.
     pub fn frontier_cells(&self) -> Vec<Cell> {
-        let mut v: Vec<Cell> = self.owner.keys().map(|k| Cell::from_key(*k)).collect();
+        let mut v = Vec::with_capacity(self.owners.len());
+        self.owners.for_each(|c, _| v.push(c));
         v.sort_unstable();
         v
     }
@@ -228,29 +237,36 @@ impl Frontiers {
     /// The clusters with at least [`FrontierConfig::min_cluster_cells`] cells, by id.
     pub fn clusters(&self) -> impl Iterator<Item = &Cluster> {
         let min = self.config.min_cluster_cells;
-        self.clusters.values().filter(move |c| c.cells.len() >= min)
+        self.clusters
+            .values()
+            .map(|(_, c)| c)
+            .filter(move |c| c.cells.len() >= min)
     }
 
     /// Every cluster, tiny ones included, by id: they partition the frontier cells.
     pub fn all_clusters(&self) -> impl Iterator<Item = &Cluster> {
-        self.clusters.values()
+        self.clusters.values().map(|(_, c)| c)
     }
 
     /// A cluster by id.
     pub fn cluster(&self, id: ClusterId) -> Option<&Cluster> {
-        self.clusters.get(&id)
+        self.clusters.get(&id).map(|(_, c)| c)
     }
 
     /// The cluster a frontier cell belongs to.
     pub fn owner(&self, c: Cell) -> Option<ClusterId> {
-        self.owner.get(&c.key()).copied()
+        self.owners
+            .get(c)
+            .and_then(|h| self.handles.get(h as usize).copied())
     }
 
     /// Recomputes everything from the whole map.
     pub fn rebuild(&mut self, map: &VoxelMap) -> FrontierDelta {
         let removed = self.clusters.keys().copied().collect();
         self.clusters.clear();
-        self.owner.clear();
+        self.owners.reset(map.grid().dims());
+        self.handles.clear();
+        self.free_handles.clear();
         let mut pool = Vec::new();
         let mut examined = 0;
         map.for_each_known(|c, s| {
@@ -269,9 +285,19 @@ impl Frontiers {
 
     /// Brings the frontier up to date after `map` absorbed `update` (the value
     /// [`VoxelMap::insert_frame`] returned). Updates must be passed in order, none skipped;
-    /// after a skipped one, call [`Frontiers::rebuild`].
+    /// after a skipped one, call [`Frontiers::rebuild`]. A frontier that tracks a map with
+    /// another grid size is rebuilt from `map` instead.
     pub fn update(&mut self, map: &VoxelMap, update: &FrameUpdate) -> FrontierDelta {
         let grid = map.grid();
+        if self.owners.dims() != grid.dims() {
+            if self.clusters.is_empty() {
+                // First use.
+                self.owners.reset(grid.dims());
+            } else {
+                // A map of another size: nothing tracked belongs to it.
+                return self.rebuild(map);
+            }
+        }
         // The changed cells and their face neighbours, each once, in a deterministic order.
         let mut lo = [u32::MAX; 3];
         let mut hi = [0u32; 3];
@@ -296,40 +322,47 @@ impl Frontiers {
             }
         }
         let examined = keys.len();
+        // Handles of the clusters to dissolve.
         let mut dirty = FxHashSet::default();
         let mut pool = Vec::new();
         for k in keys {
             let c = Cell::from_key(k);
             let now = Self::is_frontier_in(map, c);
-            match (self.owner.get(&k).copied(), now) {
-                (Some(id), false) => {
-                    self.owner.remove(&k);
-                    dirty.insert(id);
+            match (self.owners.get(c), now) {
+                (Some(h), false) => {
+                    self.owners.remove(c);
+                    dirty.insert(h);
                 }
                 (None, true) => {
                     pool.push(k);
                     for d in &NEIGHBOURS_26 {
-                        if let Some(id) = grid.offset(c, *d).and_then(|n| self.owner.get(&n.key()))
-                        {
-                            dirty.insert(*id);
+                        if let Some(h) = grid.offset(c, *d).and_then(|n| self.owners.get(n)) {
+                            dirty.insert(h);
                         }
                     }
                 }
                 _ => {}
             }
         }
-        let mut removed: Vec<ClusterId> = dirty.into_iter().collect();
-        removed.sort_unstable();
-        for id in &removed {
-            if let Some(cl) = self.clusters.remove(id) {
+        let mut dirty: Vec<u32> = dirty.into_iter().collect();
+        // By id, so that the pool's order, and with it every new id, is deterministic.
+        dirty.sort_unstable_by_key(|h| self.handles.get(*h as usize).copied());
+        let mut removed = Vec::with_capacity(dirty.len());
+        for h in dirty {
+            let Some(&id) = self.handles.get(h as usize) else {
+                continue;
+            };
+            if let Some((_, cl)) = self.clusters.remove(&id) {
                 // Cells still owned by the dissolved cluster are still frontier cells; their
-                // owner entries are overwritten when they are grown again.
+                // owners are overwritten when they are grown again.
                 pool.extend(
                     cl.cells
                         .iter()
-                        .map(|c| c.key())
-                        .filter(|k| self.owner.get(k) == Some(id)),
+                        .filter(|c| self.owners.get(**c) == Some(h))
+                        .map(|c| c.key()),
                 );
+                self.free_handles.push(h);
+                removed.push(id);
             }
         }
         let added = self.grow(map, pool);
@@ -338,6 +371,19 @@ impl Frontiers {
             added,
             examined,
         }
+    }
+
+    /// A handle for the new cluster `id`, reusing a free one if any.
+    fn handle(&mut self, id: ClusterId) -> u32 {
+        if let Some(h) = self.free_handles.pop() {
+            self.handles[h as usize] = id;
+            return h;
+        }
+        self.handles.push(id);
+        // One handle per live cluster, each with at least one cell: far below 2^32.
+        #[allow(clippy::cast_possible_truncation)]
+        let h = (self.handles.len() - 1) as u32;
+        h
     }
 
     /// Groups the pool (distinct frontier cells without a live cluster) into 26-connected
@@ -369,10 +415,13 @@ impl Frontiers {
                 let cells: Vec<Cell> = keys.into_iter().map(from_sort_key).collect();
                 let id = ClusterId(self.next_id);
                 self.next_id += 1;
+                let h = self.handle(id);
                 for c in &cells {
-                    self.owner.insert(c.key(), id);
+                    // Pool cells come from the map's grid, the size of `owners`.
+                    self.owners.insert(*c, h);
                 }
-                self.clusters.insert(id, shape(map, id, cells, moments));
+                self.clusters
+                    .insert(id, (h, shape(map, id, cells, moments)));
                 added.push(id);
             }
         }
@@ -852,6 +901,31 @@ mod tests {
             assert!((cl.normal().norm() - 1.0).abs() < 1e-9);
         }
         assert_eq!(seen.len(), inc.frontier_len());
+    }
+
+    #[test]
+    fn a_map_of_another_size_is_rebuilt() {
+        let small = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(8.0, 8.0, 3.0)).unwrap();
+        let large = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(12.0, 12.0, 3.0)).unwrap();
+        let mut a = VoxelMap::new(small, MapConfig::default()).unwrap();
+        let mut b = VoxelMap::new(large, MapConfig::default()).unwrap();
+        let mut f = Frontiers::new(FrontierConfig::default()).unwrap();
+        let ua = fan(&mut a, Point3::new(4.0, 4.0, 1.5), 2.5);
+        f.update(&a, &ua);
+        assert!(f.frontier_len() > 0);
+        // Cells of the small map's frontier mean other places in the large map.
+        fan(&mut b, Point3::new(6.0, 6.0, 1.5), 3.0);
+        let ub = fan(&mut b, Point3::new(9.0, 8.0, 1.5), 2.0);
+        let delta = f.update(&b, &ub);
+        let mut full = Frontiers::new(FrontierConfig::default()).unwrap();
+        full.rebuild(&b);
+        assert_eq!(f.frontier_cells(), full.frontier_cells());
+        assert!(!delta.removed.is_empty());
+        for cl in f.all_clusters() {
+            for c in cl.cells() {
+                assert_eq!(f.owner(*c), Some(cl.id()));
+            }
+        }
     }
 
     #[test]

@@ -41,6 +41,7 @@ mod error;
 mod frontier;
 mod grid;
 mod map;
+mod owners;
 mod raycast;
 mod viewpoint;
 
