@@ -323,7 +323,13 @@ impl Frontiers {
         }
         let examined = keys.len();
         // Handles of the clusters to dissolve.
-        let mut dirty = FxHashSet::default();
+        // One flag per handle: handles are small dense integers.
+        let mut dirty = vec![false; self.handles.len()];
+        let mut mark = |h: u32| {
+            if let Some(d) = dirty.get_mut(h as usize) {
+                *d = true;
+            }
+        };
         let mut pool = Vec::new();
         for k in keys {
             let c = Cell::from_key(k);
@@ -331,20 +337,25 @@ impl Frontiers {
             match (self.owners.get(c), now) {
                 (Some(h), false) => {
                     self.owners.remove(c);
-                    dirty.insert(h);
+                    mark(h);
                 }
                 (None, true) => {
                     pool.push(k);
                     for d in &NEIGHBOURS_26 {
                         if let Some(h) = grid.offset(c, *d).and_then(|n| self.owners.get(n)) {
-                            dirty.insert(h);
+                            mark(h);
                         }
                     }
                 }
                 _ => {}
             }
         }
-        let mut dirty: Vec<u32> = dirty.into_iter().collect();
+        // Handles index `handles`, a u32-sized table.
+        #[allow(clippy::cast_possible_truncation)]
+        let mut dirty: Vec<u32> = (0..dirty.len())
+            .filter(|&h| dirty[h])
+            .map(|h| h as u32)
+            .collect();
         // By id, so that the pool's order, and with it every new id, is deterministic.
         dirty.sort_unstable_by_key(|h| self.handles.get(*h as usize).copied());
         let mut removed = Vec::with_capacity(dirty.len());
