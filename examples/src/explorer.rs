@@ -9,7 +9,10 @@
 //! trajectory ends or is blocked) samples viewpoints and dynamic clusters
 //! ([`frontier::plan_targets`]), prices them along a topological graph with the costs
 //! (7)(8), orders them by an open ATSP tour (9) and flies a MINCO trajectory along the graph path to the
-//! first one. The scan controller then chooses the motor's acceleration along the predicted
+//! first one. When the graph reaches none of the first targets, a grid search runs from the
+//! UAV to them, then from each to the nearest graph node the UAV reaches (a bridge); the path
+//! found joins the graph. A UAV that stays within 2 m for 30 s gives up the target it keeps
+//! choosing. The scan controller then chooses the motor's acceleration along the predicted
 //! trajectory (10 Hz), with the Fisher table rebuilt from the odometry's local map every
 //! [`ExplorerConfig::fisher_frames`] frames — a fixed cycle, so a run is deterministic.
 //!
@@ -53,6 +56,17 @@ const GRID_SEARCHES: usize = 2;
 
 /// Cell expansions per grid search.
 const GRID_EXPANSIONS: usize = 60_000;
+
+/// A UAV that stays within [`STUCK_DISTANCE`] this long while it has a target gives that
+/// target up \[s\].
+const STUCK_TIME: f64 = 30.0;
+
+/// How far the UAV must move to count as not stuck \[m\].
+const STUCK_DISTANCE: f64 = 2.0;
+
+/// Graph nodes farther than this from a target are not tried as the ends of a bridge to it
+/// \[m\] (see [`Explorer::bridge`]).
+const BRIDGE_RADIUS: f64 = 20.0;
 
 /// How long the UAV looks from a reached viewpoint before its frontier counts as out of view
 /// from there \[s\].
@@ -589,13 +603,77 @@ fn grid_path(
     clearance: f64,
     max_expansions: usize,
 ) -> Option<Vec<Point3<f64>>> {
+    let goal = map.grid().cell_of(to)?;
+    let centre = map.grid().center(goal);
+    let (mut pts, _) = grid_search(
+        map,
+        from,
+        &[centre],
+        |c, _| (c == goal).then_some(0),
+        clearance,
+        max_expansions,
+    )?;
+    if let Some(last) = pts.last_mut() {
+        *last = *to;
+    }
+    Some(shortcut(map, &pts, clearance))
+}
+
+/// A grid path as [`grid_path`] from `from` to whichever of `goals` it reaches first along the
+/// shortest path: A* with the distance to the nearest goal as its heuristic (admissible, so
+/// the goal reached is the nearest by path). A goal is reached in a cell within one cell of
+/// it; the path then ends at the goal. Returns the path and the goal's index.
+fn grid_path_to_nearest(
+    map: &VoxelMap,
+    from: &Point3<f64>,
+    goals: &[Point3<f64>],
+    clearance: f64,
+    max_expansions: usize,
+) -> Option<(Vec<Point3<f64>>, usize)> {
+    let reach = map.grid().resolution();
+    let (mut pts, i) = grid_search(
+        map,
+        from,
+        goals,
+        |_, d: &[f64]| {
+            d.iter()
+                .enumerate()
+                .filter(|&(_, &d)| d <= reach)
+                .min_by(|a, b| a.1.total_cmp(b.1))
+                .map(|(i, _)| i)
+        },
+        clearance,
+        max_expansions,
+    )?;
+    pts.push(goals[i]);
+    Some((shortcut(map, &pts, clearance), i))
+}
+
+/// The A* search of [`grid_path`] and [`grid_path_to_nearest`]: `reached(cell, distances)`
+/// says which goal, if any, a cell reaches, given the distances from its centre to every goal
+/// (the heuristic is the least of them). Returns the path's points, `from` first then the
+/// centres of the cells after its own, not shortened, and the goal's index.
+fn grid_search(
+    map: &VoxelMap,
+    from: &Point3<f64>,
+    goals: &[Point3<f64>],
+    reached: impl Fn(frontier::Cell, &[f64]) -> Option<usize>,
+    clearance: f64,
+    max_expansions: usize,
+) -> Option<(Vec<Point3<f64>>, usize)> {
     use std::cmp::Reverse;
     use std::collections::BinaryHeap;
     let grid = map.grid();
-    let (start, goal) = (grid.cell_of(from)?, grid.cell_of(to)?);
+    let start = grid.cell_of(from)?;
     let near = map.clearance(from, clearance);
     let res = grid.resolution();
-    let h = |c: frontier::Cell| (grid.center(c) - grid.center(goal)).norm();
+    let mut distances = vec![0.0; goals.len()];
+    let measure = |c: frontier::Cell, out: &mut Vec<f64>| {
+        let p = grid.center(c);
+        out.clear();
+        out.extend(goals.iter().map(|g| (p - g).norm()));
+        out.iter().copied().fold(f64::INFINITY, f64::min)
+    };
     // Costs are non-negative: their bit patterns order like the values.
     let key = |f: f64| f.to_bits();
     let mut came: FxHashMap<frontier::Cell, frontier::Cell> = FxHashMap::default();
@@ -603,10 +681,11 @@ fn grid_path(
     let mut ok: FxHashMap<frontier::Cell, bool> = FxHashMap::default();
     let mut open = BinaryHeap::new();
     cost.insert(start, 0.0);
-    open.push(Reverse((key(h(start)), start)));
+    open.push(Reverse((key(measure(start, &mut distances)), start)));
     let mut expansions = 0;
     while let Some(Reverse((_, c))) = open.pop() {
-        if c == goal {
+        measure(c, &mut distances);
+        if let Some(i) = reached(c, &distances) {
             let mut cells = vec![c];
             let mut at = c;
             while let Some(&prev) = came.get(&at) {
@@ -616,10 +695,7 @@ fn grid_path(
             cells.reverse();
             let mut pts: Vec<Point3<f64>> = cells.iter().map(|&c| grid.center(c)).collect();
             pts[0] = *from;
-            if let Some(last) = pts.last_mut() {
-                *last = *to;
-            }
-            return Some(shortcut(map, &pts, clearance));
+            return Some((pts, i));
         }
         expansions += 1;
         if expansions > max_expansions {
@@ -642,9 +718,9 @@ fn grid_path(
                         } else {
                             clearance
                         };
-                        n == goal
-                            || (map.cell_state(n) == frontier::CellState::Free
-                                && map.is_clear(&p, need))
+                        let end = goals.iter().any(|g| grid.cell_of(g) == Some(n));
+                        end || (map.cell_state(n) == frontier::CellState::Free
+                            && map.is_clear(&p, need))
                     });
                     if !pass {
                         continue;
@@ -654,7 +730,7 @@ fn grid_path(
                     if cost.get(&n).is_none_or(|&old| ng < old - 1e-12) {
                         cost.insert(n, ng);
                         came.insert(n, c);
-                        open.push(Reverse((key(ng + h(n)), n)));
+                        open.push(Reverse((key(ng + measure(n, &mut distances)), n)));
                     }
                 }
             }
@@ -794,6 +870,8 @@ struct Explorer<'a> {
     exhausted: Vec<Point3<f64>>,
     /// When the UAV reached the viewpoint it now hovers at.
     arrival: Option<f64>,
+    /// Where the UAV was when it last moved [`STUCK_DISTANCE`] away, and when.
+    anchor: Option<(Point3<f64>, f64)>,
     last_targets: usize,
     /// The mission's region \[m\].
     region: (Point3<f64>, Point3<f64>),
@@ -824,6 +902,37 @@ impl Explorer<'_> {
         Ok(())
     }
 
+    /// A path from the UAV to `to` when the graph does not reach `to`: a grid search from
+    /// `to` to the nearest of the `reached` nodes (graph nodes the UAV reaches, each with its
+    /// graph path from the UAV), then that node's graph path back to the UAV. A target the
+    /// UAV's part of the graph never came near (below a floor it flew over, say) is joined to
+    /// it this way, and the grid path joins the graph. Only nodes within [`BRIDGE_RADIUS`]
+    /// of `to` are tried.
+    fn bridge(
+        &mut self,
+        reached: &[(Point3<f64>, Vec<[f64; 3]>)],
+        to: &Point3<f64>,
+    ) -> Result<Option<Vec<[f64; 3]>>, ExploreError> {
+        let near: Vec<&(Point3<f64>, Vec<[f64; 3]>)> = reached
+            .iter()
+            .filter(|(p, _)| (p - to).norm() <= BRIDGE_RADIUS)
+            .collect();
+        if near.is_empty() {
+            return Ok(None);
+        }
+        let goals: Vec<Point3<f64>> = near.iter().map(|(p, _)| *p).collect();
+        let c = self.config.clearance;
+        let Some((path, k)) = grid_path_to_nearest(&self.map, to, &goals, c, GRID_EXPANSIONS)
+        else {
+            return Ok(None);
+        };
+        let mut positions = near[k].1.clone();
+        // The grid path runs from `to` to the node, which ends the graph path already.
+        positions.extend(path.iter().rev().skip(1).map(arr));
+        self.join_path(&path)?;
+        Ok(Some(positions))
+    }
+
     /// Adds the vertices of a free path (and points every half graph radius along its
     /// segments) as permanent graph nodes, so the graph reaches where the path goes.
     fn join_path(&mut self, path: &[Point3<f64>]) -> Result<(), ExploreError> {
@@ -847,6 +956,21 @@ impl Explorer<'_> {
     fn plan(&mut self, t: f64, force: bool) -> Result<bool, ExploreError> {
         let [p, v, a] = self.reference.state(t)?;
         let here = Point3::from(p);
+        // Whether the UAV has stayed within [`STUCK_DISTANCE`] for [`STUCK_TIME`]: then the
+        // target chosen now is given up like an exhausted one. Its trajectory keeps being
+        // replaced (blocked, or swinging too close to a wall) before the UAV gets anywhere,
+        // and choosing it again would hold the UAV in place for the rest of the run.
+        let stuck = match self.anchor {
+            Some((at, _)) if (here - at).norm() > STUCK_DISTANCE => {
+                self.anchor = Some((here, t));
+                false
+            }
+            Some((_, since)) => t - since > STUCK_TIME,
+            None => {
+                self.anchor = Some((here, t));
+                false
+            }
+        };
         // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
         // and the tour is planned where the UAV can act next.
         let mut clusters: Vec<&frontier::Cluster> = self
@@ -941,6 +1065,44 @@ impl Explorer<'_> {
                 break;
             }
         }
+        // The permanent nodes the graph reaches from the UAV near the first targets, with
+        // their paths, for bridging to targets it does not connect (see `bridge`). Node ids
+        // below the UAV's are the permanent ones.
+        let mut reached = Vec::new();
+        if chosen.is_none() {
+            let reach = self.graph.shortest_paths_from(odom)?;
+            let first: Vec<Point3<f64>> = tour
+                .order
+                .iter()
+                .filter(|&&i| i != 0)
+                .take(GRID_SEARCHES)
+                .map(|&i| targets[i - 1].viewpoint)
+                .collect();
+            for n in 0..odom {
+                let p = Point3::from(self.graph.position(n)?);
+                if !first.iter().any(|t| (p - t).norm() <= BRIDGE_RADIUS) {
+                    continue;
+                }
+                let Some(via) = reach.path_to(n) else {
+                    continue;
+                };
+                if via.iter().any(|&m| m > odom) {
+                    // Through a target's temporary node: not a path of the graph that stays.
+                    continue;
+                }
+                let positions = via
+                    .iter()
+                    .map(|&m| {
+                        if m == odom {
+                            Ok(arr(&here))
+                        } else {
+                            self.graph.position(m)
+                        }
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                reached.push((p, positions));
+            }
+        }
         self.graph.clear_temporary();
         if chosen.is_none() {
             for &i in tour.order.iter().filter(|&&i| i != 0).take(GRID_SEARCHES) {
@@ -952,12 +1114,24 @@ impl Explorer<'_> {
                 }
             }
         }
+        if chosen.is_none() {
+            for &i in tour.order.iter().filter(|&&i| i != 0).take(GRID_SEARCHES) {
+                if let Some(positions) = self.bridge(&reached, &targets[i - 1].viewpoint)? {
+                    chosen = Some((i - 1, positions));
+                    break;
+                }
+            }
+        }
         let Some((i, positions)) = chosen else {
             self.stalled_since.get_or_insert(t);
             return Ok(false);
         };
         self.stalled_since = None;
         let target = targets[i];
+        if stuck {
+            self.exhausted.push(target.viewpoint);
+            self.anchor = Some((here, t));
+        }
         let same = self
             .target
             .is_some_and(|(vp, _)| (vp - target.viewpoint).norm() < 1.0);
@@ -1102,6 +1276,7 @@ pub fn explore(
         stalled_since: None,
         exhausted: Vec::new(),
         arrival: None,
+        anchor: None,
         last_targets: 0,
         region: (mission.min, mission.max),
         mission: Vec::new(),
@@ -1711,6 +1886,23 @@ mod tests {
         }
         // No path when the gap is too narrow for the clearance.
         assert!(grid_path(&map, &a, &b, 1.2, 200_000).is_none());
+        // Of two goals, the nearer by path is reached, not the nearer in a straight line
+        // (behind the wall).
+        let from = Point3::new(3.0, 1.5, 1.5);
+        let behind = Point3::new(5.9, 1.5, 1.5);
+        let open = Point3::new(0.9, 3.6, 1.5);
+        assert!((behind - from).norm() < (open - from).norm());
+        let (path, k) = grid_path_to_nearest(&map, &from, &[behind, open], 0.5, 200_000).unwrap();
+        assert_eq!(k, 1);
+        assert_eq!(path.first(), Some(&from));
+        assert_eq!(path.last(), Some(&open));
+        let (path, k) = grid_path_to_nearest(&map, &from, &[behind], 0.5, 200_000).unwrap();
+        assert_eq!((k, path.last()), (0, Some(&behind)));
+        assert!(path.iter().any(|p| p.y > 4.0));
+        for w in path.windows(2) {
+            assert!(segment_free(&map, &w[0], &w[1], 0.5, 0.0), "{w:?}");
+        }
+        assert!(grid_path_to_nearest(&map, &from, &[behind], 1.2, 200_000).is_none());
         // A UAV pushed to 0.2 m from the wall (no neighbouring cell has 0.5 m) still leaves:
         // near it the path keeps the clearance it has, farther on the full clearance.
         let c = Point3::new(4.61, 2.0, 1.5);
