@@ -173,8 +173,7 @@ pub struct FrontierDelta {
 #[derive(Debug, Clone)]
 pub struct Frontiers {
     config: FrontierConfig,
-    /// Every cluster and the handle its cells are stored under in `owners`.
-    clusters: BTreeMap<ClusterId, (u32, Cluster)>,
+    clusters: BTreeMap<ClusterId, Cluster>,
     /// Every frontier cell and the handle of its cluster.
     owners: Owners,
     /// The cluster of each handle in use.
@@ -237,20 +236,17 @@ impl Frontiers {
     /// The clusters with at least [`FrontierConfig::min_cluster_cells`] cells, by id.
     pub fn clusters(&self) -> impl Iterator<Item = &Cluster> {
         let min = self.config.min_cluster_cells;
-        self.clusters
-            .values()
-            .map(|(_, c)| c)
-            .filter(move |c| c.cells.len() >= min)
+        self.clusters.values().filter(move |c| c.cells.len() >= min)
     }
 
     /// Every cluster, tiny ones included, by id: they partition the frontier cells.
     pub fn all_clusters(&self) -> impl Iterator<Item = &Cluster> {
-        self.clusters.values().map(|(_, c)| c)
+        self.clusters.values()
     }
 
     /// A cluster by id.
     pub fn cluster(&self, id: ClusterId) -> Option<&Cluster> {
-        self.clusters.get(&id).map(|(_, c)| c)
+        self.clusters.get(&id)
     }
 
     /// The cluster a frontier cell belongs to.
@@ -322,8 +318,7 @@ impl Frontiers {
             }
         }
         let examined = keys.len();
-        // Handles of the clusters to dissolve.
-        // One flag per handle: handles are small dense integers.
+        // The clusters to dissolve, one flag per handle (handles are small dense integers).
         let mut dirty = vec![false; self.handles.len()];
         let mut mark = |h: u32| {
             if let Some(d) = dirty.get_mut(h as usize) {
@@ -363,7 +358,7 @@ impl Frontiers {
             let Some(&id) = self.handles.get(h as usize) else {
                 continue;
             };
-            if let Some((_, cl)) = self.clusters.remove(&id) {
+            if let Some(cl) = self.clusters.remove(&id) {
                 // Cells still owned by the dissolved cluster are still frontier cells; their
                 // owners are overwritten when they are grown again.
                 pool.extend(
@@ -431,8 +426,7 @@ impl Frontiers {
                     // Pool cells come from the map's grid, the size of `owners`.
                     self.owners.insert(*c, h);
                 }
-                self.clusters
-                    .insert(id, (h, shape(map, id, cells, moments)));
+                self.clusters.insert(id, shape(map, id, cells, moments));
                 added.push(id);
             }
         }

@@ -7,11 +7,11 @@ use crate::raycast::{Walk, traverse};
 use crate::{FrontierError, Result};
 
 /// Cells per block edge (blocks hold 8 × 8 × 8 cells).
-const BLOCK_BITS: u32 = 3;
+pub(crate) const BLOCK_BITS: u32 = 3;
 const BLOCK_EDGE: u32 = 1 << BLOCK_BITS;
-const BLOCK_MASK: u32 = BLOCK_EDGE - 1;
-const BLOCK_CELLS: usize = 1 << (3 * BLOCK_BITS);
-const NO_BLOCK: u32 = u32::MAX;
+pub(crate) const BLOCK_MASK: u32 = BLOCK_EDGE - 1;
+pub(crate) const BLOCK_CELLS: usize = 1 << (3 * BLOCK_BITS);
+pub(crate) const NO_BLOCK: u32 = u32::MAX;
 /// Layers of 64 cells per block (one `u64` of per-frame marks each).
 const LAYERS: usize = BLOCK_CELLS / 64;
 /// Largest per-frame mark bitsets, in words (16 MiB, three bits per cell of the frame's box);
@@ -323,7 +323,7 @@ impl VoxelMap {
     /// The index of a cell in its block: x fastest, then y, then z; each z layer of 64 cells
     /// is one cache line and one word of per-frame marks.
     #[inline]
-    fn index_in_block(c: Cell) -> usize {
+    pub(crate) fn index_in_block(c: Cell) -> usize {
         ((c.x & BLOCK_MASK)
             | ((c.y & BLOCK_MASK) << BLOCK_BITS)
             | ((c.z & BLOCK_MASK) << (2 * BLOCK_BITS))) as usize
@@ -331,7 +331,7 @@ impl VoxelMap {
 
     /// The cell at `index` of the block whose lowest cell is `corner`.
     #[inline]
-    fn cell_in_block(corner: Cell, index: u32) -> Cell {
+    pub(crate) fn cell_in_block(corner: Cell, index: u32) -> Cell {
         Cell::new(
             corner.x | (index & BLOCK_MASK),
             corner.y | ((index >> BLOCK_BITS) & BLOCK_MASK),

@@ -1,12 +1,7 @@
 //! The cluster that owns each frontier cell, stored block by block like the map.
 
 use crate::grid::Cell;
-
-/// Cells per block edge (8 × 8 × 8 cells per block).
-const BLOCK_BITS: u32 = 3;
-const BLOCK_MASK: u32 = (1 << BLOCK_BITS) - 1;
-const BLOCK_CELLS: usize = 1 << (3 * BLOCK_BITS);
-const NO_BLOCK: u32 = u32::MAX;
+use crate::map::{BLOCK_BITS, BLOCK_CELLS, NO_BLOCK, VoxelMap};
 
 /// A map from frontier cells to small integer handles: a dense block directory over the grid
 /// and one array of handles per block that holds a frontier cell.
@@ -65,10 +60,8 @@ impl Owners {
         let [bx, by, _] = self.block_dims.map(|v| v as usize);
         let b = |v: u32| (v >> BLOCK_BITS) as usize;
         let dir = b(c.x) + bx * (b(c.y) + by * b(c.z));
-        let i = (c.x & BLOCK_MASK)
-            | ((c.y & BLOCK_MASK) << BLOCK_BITS)
-            | ((c.z & BLOCK_MASK) << (2 * BLOCK_BITS));
-        Some((dir, i as usize))
+        // The same layout as the map's blocks.
+        Some((dir, VoxelMap::index_in_block(c)))
     }
 
     /// The handle owning `c`.
@@ -132,14 +125,10 @@ impl Owners {
                 ((home / bx) % by) as u32,
                 (home / (bx * by)) as u32,
             );
+            let corner = Cell::new(x << BLOCK_BITS, y << BLOCK_BITS, z << BLOCK_BITS);
             for (i, &h) in (0u32..).zip(cells.iter()) {
                 if h != 0 {
-                    let c = Cell::new(
-                        (x << BLOCK_BITS) | (i & BLOCK_MASK),
-                        (y << BLOCK_BITS) | ((i >> BLOCK_BITS) & BLOCK_MASK),
-                        (z << BLOCK_BITS) | (i >> (2 * BLOCK_BITS)),
-                    );
-                    f(c, h - 1);
+                    f(VoxelMap::cell_in_block(corner, i), h - 1);
                 }
             }
         }
