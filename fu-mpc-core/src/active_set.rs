@@ -479,7 +479,7 @@ mod tests {
             q in proptest::collection::vec(-20.0f64..20.0, 24),
             omega0 in -3.0f64..3.0,
             gamma in 0.0f64..1.0,
-            rho in 0.01f64..1.0,
+            rho in 0.01f64..20.0,
             u_max in 0.5f64..8.0,
             band in 0.5f64..3.2,
             start in proptest::collection::vec(-1.0f64..1.0, 24),

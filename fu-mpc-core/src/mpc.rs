@@ -37,6 +37,9 @@ pub struct MpcConfig {
     /// Sequential-linearisation iterations; default 8.
     pub iterations: usize,
     /// Weight ρ of the proximal term (ρ/2)‖u − ū‖² that keeps each step local; default 0.05.
+    /// Each update starts from ρ and moves between ρ·4^j, j = 0..4, like a trust region: a
+    /// step the line search cuts to a quarter or less is followed by a QP with four times the
+    /// weight, a full step by one with a quarter of it (never below ρ).
     pub proximal: f64,
     /// Which solver takes the QP steps; default [`QpBackend::Dedicated`].
     pub backend: QpBackend,
@@ -147,8 +150,9 @@ pub struct MpcSolution {
 /// Each update: builds the per-step frontier surrogates J_k, starts from the best of the
 /// shifted previous solution, constant-speed candidates and cruise-then-stop candidates
 /// (dwells at the reachable angles), then repeats a convex QP in u
-/// (the linearised surrogate costs, the smoothness term, a proximal term, |u| ≤ u_max and
-/// ω_min ≤ ω_k ≤ ω_max; see [`QpBackend`]) and a backtracking line search on the true surrogate cost. The
+/// (the linearised surrogate costs, the smoothness term, a proximal term whose weight adapts
+/// like a trust region, see [`MpcConfig::proximal`], |u| ≤ u_max and ω_min ≤ ω_k ≤ ω_max;
+/// see [`QpBackend`]) and a backtracking line search on the true surrogate cost. The
 /// terms are evaluated at the predicted states θ_1..θ_N, the ones the controls move (θ_0 is
 /// fixed). Every sequence it considers satisfies (20)–(21), so the saturation of (11) stays
 /// inactive and θ is affine in u (when ω_0 itself is outside the limits, the prediction
@@ -185,7 +189,8 @@ pub struct FuMpc {
     previous: Vec<f64>,
     solution: MpcSolution,
     work: Work,
-    active: Option<ActiveSet>,
+    /// One dedicated solver per proximal level ρ·4^j, j = 0..PROXIMAL_LEVELS.
+    active: Vec<ActiveSet>,
 }
 
 impl FuMpc {
@@ -229,7 +234,16 @@ impl FuMpc {
                     w_hi: vec![config.limits.omega_max(); n],
                 },
             },
-            active: ActiveSet::new(n, config.gamma, config.proximal, config.dt),
+            active: (0..PROXIMAL_LEVELS)
+                .filter_map(|j| {
+                    ActiveSet::new(
+                        n,
+                        config.gamma,
+                        proximal_level(config.proximal, j),
+                        config.dt,
+                    )
+                })
+                .collect(),
             solution: MpcSolution {
                 controls: vec![0.0; n],
                 predicted: vec![PredictedStep::default(); n + 1],
@@ -349,10 +363,11 @@ impl FuMpc {
     fn make_feasible(&self, omega0: f64, u: &mut [f64]) {
         let l = &self.config.limits;
         let dt = self.config.dt;
+        let inv_dt = 1.0 / dt;
         let mut w = omega0;
         for x in u.iter_mut() {
-            let lo = ((l.omega_min() - w) / dt).max(-l.u_max());
-            let hi = ((l.omega_max() - w) / dt).min(l.u_max());
+            let lo = ((l.omega_min() - w) * inv_dt).max(-l.u_max());
+            let hi = ((l.omega_max() - w) * inv_dt).min(l.u_max());
             *x = if x.is_finite() {
                 x.clamp(lo, hi)
             } else {
@@ -476,7 +491,9 @@ impl FuMpc {
         let c = self.config;
         let n = c.horizon;
         let l = c.limits;
-        let theta0 = input.motor.theta;
+        // The cost tables are 2π-periodic: the reduced angle keeps their lookups on the
+        // one-turn fast path.
+        let theta0 = input.motor.theta.rem_euclid(core::f64::consts::TAU);
         let omega0 = input.motor.omega.clamp(l.omega_min(), l.omega_max());
         let fisher = input.fisher.map(|f| f.cost());
         self.build_surrogates(input)?;
@@ -490,19 +507,22 @@ impl FuMpc {
         self.make_feasible(omega0, &mut w.best);
         let mut best_cost = self.total(theta0, omega0, &w.best, fisher, None);
         let mut consider = |this: &Self, w: &mut Work| {
-            this.make_feasible(omega0, &mut w.cand);
             let cc = this.total(theta0, omega0, &w.cand, fisher, None);
             if cc < best_cost {
                 best_cost = cc;
                 w.best.copy_from_slice(&w.cand);
             }
         };
+        // Each candidate is built feasible (the clipping of `make_feasible` applied as it goes).
+        let inv_dt = 1.0 / c.dt;
         let fill = |cand: &mut [f64], cruise: f64, m: usize, stop: f64| {
             let mut speed = omega0;
             for (k, x) in cand.iter_mut().enumerate() {
                 let target = if k < m { cruise } else { stop };
-                *x = l.saturate_acceleration((target - speed) / c.dt);
-                speed += *x * c.dt;
+                let lo = ((l.omega_min() - speed) * inv_dt).max(-l.u_max());
+                let hi = ((l.omega_max() - speed) * inv_dt).min(l.u_max());
+                *x = ((target - speed) * inv_dt).clamp(lo, hi);
+                speed = (speed + *x * c.dt).clamp(l.omega_min(), l.omega_max());
             }
         };
         for target in [
@@ -531,6 +551,7 @@ impl FuMpc {
         let mut iterations = 0;
         let dt2 = c.dt * c.dt;
         w.qp.omega0 = omega0;
+        let mut level = 0;
         for _ in 0..c.iterations {
             iterations += 1;
             self.total(theta0, omega0, &w.best, fisher, Some(&mut w.slopes));
@@ -539,11 +560,12 @@ impl FuMpc {
             for j in (0..n).rev() {
                 acc += w.slopes[j];
                 weighted += acc;
-                w.qp.q[j] = dt2 * weighted - c.proximal * w.best[j];
+                w.qp.q[j] = dt2 * weighted - proximal_level(c.proximal, level) * w.best[j];
             }
             // The QP step from the feasible current iterate.
             w.x.copy_from_slice(&w.best);
-            let solved = match (c.backend, self.active.as_mut()) {
+            w.qp.rho = proximal_level(c.proximal, level);
+            let solved = match (c.backend, self.active.get_mut(level)) {
                 (QpBackend::Dedicated, Some(active)) if active.fits(&w.qp) => {
                     active.solve(&w.qp, &mut w.x)
                 }
@@ -562,7 +584,7 @@ impl FuMpc {
             // Backtracking on the true surrogate cost.
             let mut t = 1.0;
             let mut accepted = false;
-            for _ in 0..10 {
+            for halvings in 0..10usize {
                 for j in 0..n {
                     w.trial[j] = w.best[j] + t * (w.x[j] - w.best[j]);
                 }
@@ -572,6 +594,13 @@ impl FuMpc {
                     w.best.copy_from_slice(&w.trial);
                     cost = tc;
                     accepted = true;
+                    // Trust-region rule: a full step widens the next one, a short one
+                    // narrows it.
+                    level = if halvings == 0 {
+                        level.saturating_sub(1)
+                    } else {
+                        (level + usize::from(halvings >= 2)).min(PROXIMAL_LEVELS - 1)
+                    };
                     break;
                 }
                 t *= 0.5;
@@ -598,6 +627,18 @@ impl FuMpc {
         )?;
         Ok(status)
     }
+}
+
+/// Number of proximal levels ρ·4^j the solver moves between.
+const PROXIMAL_LEVELS: usize = 5;
+
+/// The proximal weight of level `j`: ρ·4^j.
+fn proximal_level(rho: f64, j: usize) -> f64 {
+    let mut r = rho;
+    for _ in 0..j {
+        r *= 4.0;
+    }
+    r
 }
 
 /// Buffers of one update, kept between updates so a solve allocates nothing.

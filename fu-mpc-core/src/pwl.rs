@@ -86,8 +86,14 @@ impl PeriodicPwl {
         #[allow(clippy::cast_precision_loss)]
         let nf = n as f64;
         let mut x = theta * self.scale;
-        if !(0.0..nf).contains(&x) {
-            // Wrap into [0, n] without fmod or a libm floor (the hot path of the MPC).
+        if (-nf..0.0).contains(&x) {
+            // One turn either side: the common case of a horizon's angles (the hot path of
+            // the MPC).
+            x += nf;
+        } else if (nf..2.0 * nf).contains(&x) {
+            x -= nf;
+        } else if !(0.0..nf).contains(&x) {
+            // Wrap into [0, n] without fmod or a libm floor.
             let q = x / nf;
             if q.abs() < 1e15 {
                 // |q| < 2^53: the truncation is exact, and a step down makes it the floor.

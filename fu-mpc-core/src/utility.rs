@@ -107,6 +107,8 @@ pub fn frontier_surrogates(
     // Knot counts are far below 2^53.
     #[allow(clippy::cast_precision_loss)]
     let h = TAU / knots as f64;
+    #[allow(clippy::cast_precision_loss)]
+    let inv_h = knots as f64 / TAU;
     let motor_base = chain.extrinsics().motor_base_in_body().rotation;
     let two_s2 = 2.0 * config.sigma * config.sigma;
     let cos_gate = config.half_angle.cos();
@@ -160,8 +162,12 @@ pub fn frontier_surrogates(
                 }
                 continue;
             }
-            let first = ((phi - reach) / h).ceil();
-            let last = ((phi + reach) / h).floor();
+            // In units of the knot spacing the smoothed gate is clamp(c0 − |c − φ/h|, 0, 1):
+            // no division per knot.
+            let centre = phi * inv_h;
+            let c0 = 0.5 + delta * inv_h;
+            let first = ((phi - reach) * inv_h).ceil();
+            let last = ((phi + reach) * inv_h).floor();
             // Knot index of `first`, wrapped into [0, knots) once; the loop then steps it with
             // a compare instead of a division per knot. |first| ≤ knots, so the cast is exact.
             #[allow(clippy::cast_possible_truncation)]
@@ -169,8 +175,7 @@ pub fn frontier_surrogates(
             let mut k = first;
             while k <= last {
                 // |k h − φ| ≤ δ + h/2 < π here, so the offset needs no wrapping.
-                let off = (k * h - phi).abs();
-                values[c] += r * gate(off, delta, h);
+                values[c] += r * (c0 - (k - centre).abs()).clamp(0.0, 1.0);
                 k += 1.0;
                 c += 1;
                 if c == knots {
