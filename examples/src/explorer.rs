@@ -619,6 +619,71 @@ fn grid_path(
     Some(shortcut(map, &pts, clearance))
 }
 
+/// A path from the UAV to `to` through the graph: a grid search from `to` to the nearest of
+/// the `reached` nodes (graph nodes the UAV reaches, each with its graph path from the UAV),
+/// then that node's graph path back to the UAV. A target the UAV's part of the graph never
+/// came near (below a floor it flew over, say) is joined to it this way. Only nodes within
+/// [`BRIDGE_RADIUS`] of `to` are tried. Returns the positions from the UAV to `to`, and the
+/// grid part from `to` to the node.
+fn bridge_path(
+    map: &VoxelMap,
+    reached: &[(Point3<f64>, Vec<[f64; 3]>)],
+    to: &Point3<f64>,
+    clearance: f64,
+) -> Option<Bridge> {
+    let near: Vec<&(Point3<f64>, Vec<[f64; 3]>)> = reached
+        .iter()
+        .filter(|(p, _)| (p - to).norm() <= BRIDGE_RADIUS)
+        .collect();
+    if near.is_empty() {
+        return None;
+    }
+    let goals: Vec<Point3<f64>> = near.iter().map(|(p, _)| *p).collect();
+    let (path, k) = grid_path_to_nearest(map, to, &goals, clearance, GRID_EXPANSIONS)?;
+    let mut positions = near[k].1.clone();
+    // The grid path runs from `to` to the node, which ends the graph path already.
+    positions.extend(path.iter().rev().skip(1).map(arr));
+    Some(Bridge {
+        positions,
+        grid: path,
+    })
+}
+
+/// A path found by [`bridge_path`].
+#[derive(Debug, Clone)]
+struct Bridge {
+    /// From the UAV along a graph path to a node, then to the target.
+    positions: Vec<[f64; 3]>,
+    /// The grid part, from the target to the node.
+    grid: Vec<Point3<f64>>,
+}
+
+/// Whether the UAV makes headway: it is stuck once it has stayed within [`STUCK_DISTANCE`]
+/// of one place for longer than [`STUCK_TIME`].
+#[derive(Debug, Clone, Copy, Default)]
+struct Headway {
+    /// Where the UAV was when it last moved [`STUCK_DISTANCE`] away, and when.
+    anchor: Option<(Point3<f64>, f64)>,
+}
+
+impl Headway {
+    /// Records the UAV at `here` at time `t` and says whether it is stuck.
+    fn stuck(&mut self, here: &Point3<f64>, t: f64) -> bool {
+        match self.anchor {
+            Some((at, since)) if (here - at).norm() <= STUCK_DISTANCE => t - since > STUCK_TIME,
+            _ => {
+                self.restart(here, t);
+                false
+            }
+        }
+    }
+
+    /// Starts the clock again from `here` at `t`.
+    fn restart(&mut self, here: &Point3<f64>, t: f64) {
+        self.anchor = Some((*here, t));
+    }
+}
+
 /// A grid path as [`grid_path`] from `from` to whichever of `goals` it reaches first along the
 /// shortest path: A* with the distance to the nearest goal as its heuristic (admissible, so
 /// the goal reached is the nearest by path). A goal is reached in a cell within one cell of
@@ -870,8 +935,8 @@ struct Explorer<'a> {
     exhausted: Vec<Point3<f64>>,
     /// When the UAV reached the viewpoint it now hovers at.
     arrival: Option<f64>,
-    /// Where the UAV was when it last moved [`STUCK_DISTANCE`] away, and when.
-    anchor: Option<(Point3<f64>, f64)>,
+    /// Whether the UAV makes headway toward its targets.
+    headway: Headway,
     last_targets: usize,
     /// The mission's region \[m\].
     region: (Point3<f64>, Point3<f64>),
@@ -902,35 +967,18 @@ impl Explorer<'_> {
         Ok(())
     }
 
-    /// A path from the UAV to `to` when the graph does not reach `to`: a grid search from
-    /// `to` to the nearest of the `reached` nodes (graph nodes the UAV reaches, each with its
-    /// graph path from the UAV), then that node's graph path back to the UAV. A target the
-    /// UAV's part of the graph never came near (below a floor it flew over, say) is joined to
-    /// it this way, and the grid path joins the graph. Only nodes within [`BRIDGE_RADIUS`]
-    /// of `to` are tried.
+    /// A path from the UAV to `to` when the graph does not reach `to` (see [`bridge_path`]);
+    /// the grid part of the path joins the graph.
     fn bridge(
         &mut self,
         reached: &[(Point3<f64>, Vec<[f64; 3]>)],
         to: &Point3<f64>,
     ) -> Result<Option<Vec<[f64; 3]>>, ExploreError> {
-        let near: Vec<&(Point3<f64>, Vec<[f64; 3]>)> = reached
-            .iter()
-            .filter(|(p, _)| (p - to).norm() <= BRIDGE_RADIUS)
-            .collect();
-        if near.is_empty() {
-            return Ok(None);
-        }
-        let goals: Vec<Point3<f64>> = near.iter().map(|(p, _)| *p).collect();
-        let c = self.config.clearance;
-        let Some((path, k)) = grid_path_to_nearest(&self.map, to, &goals, c, GRID_EXPANSIONS)
-        else {
+        let Some(bridge) = bridge_path(&self.map, reached, to, self.config.clearance) else {
             return Ok(None);
         };
-        let mut positions = near[k].1.clone();
-        // The grid path runs from `to` to the node, which ends the graph path already.
-        positions.extend(path.iter().rev().skip(1).map(arr));
-        self.join_path(&path)?;
-        Ok(Some(positions))
+        self.join_path(&bridge.grid)?;
+        Ok(Some(bridge.positions))
     }
 
     /// Adds the vertices of a free path (and points every half graph radius along its
@@ -956,21 +1004,11 @@ impl Explorer<'_> {
     fn plan(&mut self, t: f64, force: bool) -> Result<bool, ExploreError> {
         let [p, v, a] = self.reference.state(t)?;
         let here = Point3::from(p);
-        // Whether the UAV has stayed within [`STUCK_DISTANCE`] for [`STUCK_TIME`]: then the
-        // target chosen now is given up like an exhausted one. Its trajectory keeps being
-        // replaced (blocked, or swinging too close to a wall) before the UAV gets anywhere,
-        // and choosing it again would hold the UAV in place for the rest of the run.
-        let stuck = match self.anchor {
-            Some((at, _)) if (here - at).norm() > STUCK_DISTANCE => {
-                self.anchor = Some((here, t));
-                false
-            }
-            Some((_, since)) => t - since > STUCK_TIME,
-            None => {
-                self.anchor = Some((here, t));
-                false
-            }
-        };
+        // A UAV stuck in place gives the target chosen now up like an exhausted one: its
+        // trajectory keeps being replaced (blocked, or swinging too close to a wall) before
+        // the UAV gets anywhere, and choosing it again would hold the UAV there for the rest
+        // of the run.
+        let stuck = self.headway.stuck(&here, t);
         // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
         // and the tour is planned where the UAV can act next.
         let mut clusters: Vec<&frontier::Cluster> = self
@@ -1130,7 +1168,7 @@ impl Explorer<'_> {
         let target = targets[i];
         if stuck {
             self.exhausted.push(target.viewpoint);
-            self.anchor = Some((here, t));
+            self.headway.restart(&here, t);
         }
         let same = self
             .target
@@ -1276,7 +1314,7 @@ pub fn explore(
         stalled_since: None,
         exhausted: Vec::new(),
         arrival: None,
-        anchor: None,
+        headway: Headway::default(),
         last_targets: 0,
         region: (mission.min, mission.max),
         mission: Vec::new(),
@@ -1841,9 +1879,8 @@ mod tests {
         assert!(!surface_bound(&open, c));
     }
 
-    #[test]
-    fn grid_paths_go_round_walls_and_keep_their_clearance() {
-        // A fully known 10 × 6 × 3 m box with a wall across x = 5 leaving a gap at y > 4.
+    /// A fully known 10 × 6 × 3 m box with a wall across x = 5 leaving a gap at y > 4.
+    fn walled_map() -> VoxelMap {
         let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(10.0, 6.0, 3.0)).unwrap();
         let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
         let wall = |p: &Point3<f64>| (p.x - 5.0).abs() < 0.15 && p.y < 4.0;
@@ -1874,6 +1911,12 @@ mod tests {
             }
             map.insert_frame(&o, &hits).unwrap();
         }
+        map
+    }
+
+    #[test]
+    fn grid_paths_go_round_walls_and_keep_their_clearance() {
+        let map = walled_map();
         let (a, b) = (Point3::new(2.0, 2.0, 1.5), Point3::new(8.0, 2.0, 1.5));
         assert!(!segment_free(&map, &a, &b, 0.5, 0.0));
         let path = grid_path(&map, &a, &b, 0.5, 200_000).unwrap();
@@ -1921,6 +1964,61 @@ mod tests {
         for w in path.windows(2) {
             assert!(map.line_of_sight(&w[0], &w[1]), "{w:?}");
         }
+    }
+
+    #[test]
+    fn bridges_join_a_target_behind_a_wall_through_the_nearest_reached_node() {
+        let map = walled_map();
+        let uav = [1.0, 1.0, 1.5];
+        let node = Point3::new(3.0, 3.0, 1.5);
+        let corner = Point3::new(0.8, 0.8, 1.5);
+        let reached = vec![
+            (corner, vec![uav, arr(&corner)]),
+            (node, vec![uav, arr(&node)]),
+        ];
+        let to = Point3::new(8.0, 2.0, 1.5);
+        let Bridge {
+            positions,
+            grid: path,
+        } = bridge_path(&map, &reached, &to, 0.5).unwrap();
+        // From the UAV along the node's graph path, then through the gap to the target.
+        assert_eq!(positions.first(), Some(&uav));
+        assert_eq!(positions[1], arr(&node));
+        assert_eq!(positions.last(), Some(&arr(&to)));
+        assert_eq!((path.first(), path.last()), (Some(&to), Some(&node)));
+        assert!(path.iter().any(|p| p.y > 4.0));
+        for w in positions.windows(2) {
+            let (a, b) = (Point3::from(w[0]), Point3::from(w[1]));
+            assert!(segment_free(&map, &a, &b, 0.5, 0.0), "{w:?}");
+        }
+        // Without nodes, or with a clearance the gap cannot give, there is no bridge.
+        assert!(bridge_path(&map, &[], &to, 0.5).is_none());
+        assert!(bridge_path(&map, &reached, &to, 1.2).is_none());
+    }
+
+    #[test]
+    fn a_uav_that_stays_in_place_is_stuck_and_one_that_moves_is_not() {
+        let mut h = Headway::default();
+        for i in 0..200 {
+            let t = f64::from(i) * 0.5;
+            assert!(!h.stuck(&Point3::new(t, 0.0, 1.0), t), "{t}");
+        }
+        // Swaying 1.5 m either way about one place: stuck once more than STUCK_TIME passed.
+        let mut h = Headway::default();
+        let at = Point3::new(5.0, 5.0, 1.0);
+        for i in 0..=80 {
+            let t = f64::from(i) * 0.5;
+            let p = at + Vector3::new(1.5 * t.sin(), 0.0, 0.0);
+            assert_eq!(h.stuck(&p, t), t > STUCK_TIME, "{t}");
+        }
+        // A restart, or leaving the circle, starts the clock again.
+        h.restart(&at, 40.0);
+        assert!(!h.stuck(&at, 40.0 + STUCK_TIME));
+        assert!(h.stuck(&at, 40.5 + STUCK_TIME));
+        let away = at + Vector3::new(STUCK_DISTANCE + 0.1, 0.0, 0.0);
+        assert!(!h.stuck(&away, 80.0));
+        assert!(!h.stuck(&away, 80.0 + STUCK_TIME));
+        assert!(h.stuck(&away, 80.5 + STUCK_TIME));
     }
 
     #[test]
