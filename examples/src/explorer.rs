@@ -11,9 +11,11 @@
 //! (7)(8), orders them by an open ATSP tour (9) and flies a MINCO trajectory along the graph path to the
 //! first one. When the graph reaches none of the first targets, a grid search runs from the
 //! UAV to them, then from each to the nearest graph node the UAV reaches (a bridge); the path
-//! found joins the graph. A UAV that stays within 2 m for 30 s gives up the target it keeps
-//! choosing. The scan controller then chooses the motor's acceleration along the predicted
-//! trajectory (10 Hz), with the Fisher table rebuilt from the odometry's local map every
+//! found joins the graph. A trajectory that comes closer to an obstacle than the UAV's radius
+//! and margin is made again through waypoints at most 1 m apart along the path. A UAV whose
+//! positions fit in a box of 4 m diagonal for 30 s gives up the target it keeps choosing. The
+//! scan controller then chooses the motor's acceleration along the predicted trajectory
+//! (10 Hz), with the Fisher table rebuilt from the odometry's local map every
 //! [`ExplorerConfig::fisher_frames`] frames — a fixed cycle, so a run is deterministic.
 //!
 //! The UAV tracks the plan in the estimated frame exactly as in [`crate::flight`]: the true
@@ -57,12 +59,18 @@ const GRID_SEARCHES: usize = 2;
 /// Cell expansions per grid search.
 const GRID_EXPANSIONS: usize = 60_000;
 
-/// A UAV that stays within [`STUCK_DISTANCE`] this long while it has a target gives that
-/// target up \[s\].
+/// A UAV that stays in a box of diagonal [`STUCK_SPAN`] this long while it has a target gives
+/// that target up \[s\].
 const STUCK_TIME: f64 = 30.0;
 
-/// How far the UAV must move to count as not stuck \[m\].
-const STUCK_DISTANCE: f64 = 2.0;
+/// The diagonal of the box the UAV must leave to count as not stuck \[m\]. A box rather than
+/// a distance from one point: a UAV swaying about a place would otherwise count as moving
+/// whenever it swings from one end of its sway to the other.
+const STUCK_SPAN: f64 = 4.0;
+
+/// Largest spacing of the waypoints of a trajectory made again because the first one came
+/// too close to an obstacle \[m\] (see [`densify`]).
+const DENSE_SPACING: f64 = 1.0;
 
 /// Graph nodes farther than this from a target are not tried as the ends of a bridge to it
 /// \[m\] (see [`Explorer::bridge`]).
@@ -658,29 +666,54 @@ struct Bridge {
     grid: Vec<Point3<f64>>,
 }
 
-/// Whether the UAV makes headway: it is stuck once it has stayed within [`STUCK_DISTANCE`]
-/// of one place for longer than [`STUCK_TIME`].
+/// The points of `path` with points added along every segment longer than `spacing`, evenly,
+/// so no two consecutive points are farther apart than `spacing`.
+fn densify(path: &[[f64; 3]], spacing: f64) -> Vec<[f64; 3]> {
+    let mut out = Vec::with_capacity(path.len());
+    for w in path.windows(2) {
+        let (a, b) = (Point3::from(w[0]), Point3::from(w[1]));
+        let d = b - a;
+        // Segment lengths are metres and the spacing is positive: the count is small.
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = (d.norm() / spacing).ceil().max(1.0) as u32;
+        for k in 0..n {
+            out.push(arr(&(a + d * (f64::from(k) / f64::from(n)))));
+        }
+    }
+    if let Some(last) = path.last() {
+        out.push(*last);
+    }
+    out
+}
+
+/// Whether the UAV makes headway: it is stuck once its positions since the clock last
+/// started have fitted in a box of diagonal [`STUCK_SPAN`] for longer than [`STUCK_TIME`].
+/// The clock starts again whenever they no longer fit.
 #[derive(Debug, Clone, Copy, Default)]
 struct Headway {
-    /// Where the UAV was when it last moved [`STUCK_DISTANCE`] away, and when.
-    anchor: Option<(Point3<f64>, f64)>,
+    /// The box of the positions since `since`: (least corner, greatest corner, since).
+    span: Option<(Point3<f64>, Point3<f64>, f64)>,
 }
 
 impl Headway {
     /// Records the UAV at `here` at time `t` and says whether it is stuck.
     fn stuck(&mut self, here: &Point3<f64>, t: f64) -> bool {
-        match self.anchor {
-            Some((at, since)) if (here - at).norm() <= STUCK_DISTANCE => t - since > STUCK_TIME,
-            _ => {
-                self.restart(here, t);
-                false
-            }
+        let Some((lo, hi, since)) = self.span else {
+            self.restart(here, t);
+            return false;
+        };
+        let (lo, hi) = (lo.inf(here), hi.sup(here));
+        if (hi - lo).norm() > STUCK_SPAN {
+            self.restart(here, t);
+            return false;
         }
+        self.span = Some((lo, hi, since));
+        t - since > STUCK_TIME
     }
 
     /// Starts the clock again from `here` at `t`.
     fn restart(&mut self, here: &Point3<f64>, t: f64) {
-        self.anchor = Some((*here, t));
+        self.span = Some((*here, *here, t));
     }
 }
 
@@ -984,18 +1017,9 @@ impl Explorer<'_> {
     /// Adds the vertices of a free path (and points every half graph radius along its
     /// segments) as permanent graph nodes, so the graph reaches where the path goes.
     fn join_path(&mut self, path: &[Point3<f64>]) -> Result<(), ExploreError> {
-        let r = 0.5 * self.config.graph_radius;
-        for w in path.windows(2) {
-            let d = w[1] - w[0];
-            // Segment lengths are metres: the count is small.
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-            let n = (d.norm() / r).ceil().max(1.0) as u32;
-            for k in 0..n {
-                self.add_node(&(w[0] + d * (f64::from(k) / f64::from(n))))?;
-            }
-        }
-        if let Some(last) = path.last() {
-            self.add_node(last)?;
+        let pts: Vec<[f64; 3]> = path.iter().map(arr).collect();
+        for p in densify(&pts, 0.5 * self.config.graph_radius) {
+            self.add_node(&Point3::from(p))?;
         }
         Ok(())
     }
@@ -1204,11 +1228,26 @@ impl Explorer<'_> {
             }
             None
         } else {
-            Some(
-                Optimizer::<3, 3>::new(cfg, head, tail, inner)?
+            let first = Optimizer::<3, 3>::new(cfg, head, tail, inner)?
+                .optimize()?
+                .trajectory;
+            // A trajectory that cuts closer to a wall or ceiling than the path between two
+            // far-apart waypoints is made again through waypoints at most
+            // [`DENSE_SPACING`] apart, which hold it to the path.
+            if self.too_close(&first, 0.0)? {
+                let dense = densify(&positions, DENSE_SPACING);
+                let inner = &dense[1..dense.len().saturating_sub(1).max(1)];
+                let second = Optimizer::<3, 3>::new(cfg, head, tail, inner)?
                     .optimize()?
-                    .trajectory,
-            )
+                    .trajectory;
+                Some(if self.too_close(&second, 0.0)? {
+                    first
+                } else {
+                    second
+                })
+            } else {
+                Some(first)
+            }
         };
         // A new trajectory that swings close to a wall (the UAV's momentum carries it past
         // a sharp turn) does not replace a safe one: the UAV stays on course and plans again.
@@ -1997,28 +2036,55 @@ mod tests {
     }
 
     #[test]
+    fn densified_paths_keep_their_points_and_the_spacing() {
+        let path = [
+            [0.0, 0.0, 1.0],
+            [3.5, 0.0, 1.0],
+            [3.5, 0.2, 1.0],
+            [3.5, 2.2, 3.0],
+        ];
+        let dense = densify(&path, 1.0);
+        // 4 pieces, 1 piece and 3 pieces, then the end.
+        assert_eq!(dense.len(), 9);
+        for p in &path {
+            assert!(dense.contains(p), "{p:?}");
+        }
+        assert_eq!((dense.first(), dense.last()), (path.first(), path.last()));
+        for w in dense.windows(2) {
+            let d = (Point3::from(w[1]) - Point3::from(w[0])).norm();
+            assert!(d > 0.0 && d <= 1.0 + 1e-12, "{w:?}");
+        }
+        assert_eq!(densify(&path[..1], 1.0), path[..1].to_vec());
+        assert!(densify(&[], 1.0).is_empty());
+    }
+
+    #[test]
     fn a_uav_that_stays_in_place_is_stuck_and_one_that_moves_is_not() {
         let mut h = Headway::default();
         for i in 0..200 {
             let t = f64::from(i) * 0.5;
             assert!(!h.stuck(&Point3::new(t, 0.0, 1.0), t), "{t}");
         }
-        // Swaying 1.5 m either way about one place: stuck once more than STUCK_TIME passed.
+        // Swaying 1.5 m either way about one place, and 0.6 m up and down: stuck once more
+        // than STUCK_TIME has passed (from one end of the sway, the other is 3.1 m away).
         let mut h = Headway::default();
         let at = Point3::new(5.0, 5.0, 1.0);
         for i in 0..=80 {
             let t = f64::from(i) * 0.5;
-            let p = at + Vector3::new(1.5 * t.sin(), 0.0, 0.0);
+            let p = at + Vector3::new(1.5 * t.sin(), 0.0, 0.3 * (0.7 * t).cos());
             assert_eq!(h.stuck(&p, t), t > STUCK_TIME, "{t}");
         }
-        // A restart, or leaving the circle, starts the clock again.
+        // A restart starts the clock again.
         h.restart(&at, 40.0);
         assert!(!h.stuck(&at, 40.0 + STUCK_TIME));
         assert!(h.stuck(&at, 40.5 + STUCK_TIME));
-        let away = at + Vector3::new(STUCK_DISTANCE + 0.1, 0.0, 0.0);
-        assert!(!h.stuck(&away, 80.0));
-        assert!(!h.stuck(&away, 80.0 + STUCK_TIME));
-        assert!(h.stuck(&away, 80.5 + STUCK_TIME));
+        // So does a position that no longer fits the box.
+        let near = at + Vector3::new(0.9 * STUCK_SPAN, 0.0, 0.0);
+        assert!(h.stuck(&near, 80.0));
+        let away = at + Vector3::new(STUCK_SPAN + 0.1, 0.0, 0.0);
+        assert!(!h.stuck(&away, 81.0));
+        assert!(!h.stuck(&away, 81.0 + STUCK_TIME));
+        assert!(h.stuck(&away, 81.5 + STUCK_TIME));
     }
 
     #[test]
