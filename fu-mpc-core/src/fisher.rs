@@ -242,12 +242,16 @@ pub(crate) fn normals(points: &[[f64; 3]], k: usize) -> Vec<Vector3<f64>> {
     let Some(k) = NonZeroUsize::new(k.min(points.len())) else {
         return vec![Vector3::z(); points.len()];
     };
+    // Queries in Morton order of their cells visit the tree's nodes in nearly the order it
+    // stores them, so consecutive queries find their nodes in cache.
+    let order = morton_order(points);
     // Each point's normal is independent of the others: the queries run on rayon's threads,
     // in fixed chunks, and the result is the same on any number of threads.
-    points
+    let sorted: Vec<Vector3<f64>> = order
         .par_iter()
         .with_min_len(NORMAL_CHUNK)
-        .map(|p| {
+        .map(|&i| {
+            let p = &points[i];
             let nn = tree
                 .query(p)
                 .nearest_n::<SquaredEuclidean<f64>>(k)
@@ -275,7 +279,58 @@ pub(crate) fn normals(points: &[[f64; 3]], k: usize) -> Vec<Vector3<f64>> {
             }
             least_eigenvector(&cov)
         })
-        .collect()
+        .collect();
+    let mut out = vec![Vector3::z(); points.len()];
+    for (&i, n) in order.iter().zip(sorted) {
+        out[i] = n;
+    }
+    out
+}
+
+/// Indices of `points` sorted by the Morton code of their cells on a 2^21 grid over the
+/// points' bounding box (ties by index, so the order is deterministic).
+fn morton_order(points: &[[f64; 3]]) -> Vec<usize> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for d in 0..3 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    let extent = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+    let scale = if extent > 0.0 {
+        f64::from((1u32 << 21) - 1) / extent
+    } else {
+        0.0
+    };
+    let mut keyed: Vec<(u64, usize)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let mut key = 0u64;
+            for d in 0..3 {
+                // In [0, 2^21) by the scale; the float-to-int cast saturates anyway.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let c = ((p[d] - lo[d]) * scale) as u64;
+                key |= spread3(c) << d;
+            }
+            (key, i)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// The low 21 bits of `x` spread to every third bit.
+fn spread3(x: u64) -> u64 {
+    let mut x = x & 0x1f_ffff;
+    x = (x | x << 32) & 0x1f_0000_0000_ffff;
+    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
 }
 
 /// The unit eigenvector of the smallest eigenvalue of a symmetric 3 × 3 matrix (see
@@ -375,6 +430,35 @@ mod tests {
             let got = least_eigenvector(&a);
             prop_assert!((got.dot(&want).abs() - 1.0).abs() < 1e-6, "{:?} vs {:?}", got, want);
         }
+    }
+
+    proptest! {
+        #[test]
+        fn morton_order_is_a_permutation_along_the_curve(
+            v in proptest::collection::vec(-50.0f64..50.0, 0..120),
+        ) {
+            let points: Vec<[f64; 3]> = v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            let order = morton_order(&points);
+            let mut seen = order;
+            seen.sort_unstable();
+            prop_assert_eq!(seen, (0..points.len()).collect::<Vec<_>>());
+        }
+    }
+
+    #[test]
+    fn spread_bits_interleave() {
+        assert_eq!(spread3(0b111), 0b1001001);
+        assert_eq!(spread3((1 << 21) - 1).count_ones(), 21);
+        assert_eq!(spread3(1 << 20), 1 << 60);
+        // Cells of the unit cube in Morton order: x first, then y, then z.
+        let pts = [
+            [1.0, 1.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0; 3],
+        ];
+        assert_eq!(morton_order(&pts), vec![4, 3, 2, 1, 0]);
     }
 
     #[test]
