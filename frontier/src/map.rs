@@ -914,21 +914,18 @@ fn mark_rays(
 ) {
     let oz = grid.clamp_cell(grid.grid_coords(origin)).z >> BLOCK_BITS;
     let (z0, depth) = (slab.lo[2], slab.dims[2]);
+    let lo = Cell::new(
+        slab.lo[0] << BLOCK_BITS,
+        slab.lo[1] << BLOCK_BITS,
+        z0 << BLOCK_BITS,
+    );
     for (end, _) in rays {
         let ez = grid.clamp_cell(grid.grid_coords(end)).z >> BLOCK_BITS;
         // The cells of a segment lie in the box of its end cells.
         if oz.max(ez) < z0 || (oz.min(ez).max(z0) - z0) as usize >= depth {
             continue;
         }
-        let mut walk = Walk::new(grid, origin, end);
-        loop {
-            if let Some((block, layer, bit)) = slab.mark(walk.cell()) {
-                words[stride * block + layer] |= bit;
-            }
-            if walk.advance().is_none() {
-                break;
-            }
-        }
+        Walk::new(grid, origin, end).mark_blocked(lo, [slab.dims[0], slab.dims[1]], stride, words);
     }
 }
 
@@ -1214,6 +1211,39 @@ mod tests {
                 let b = split.insert_frame(&o, &points).unwrap();
                 proptest::prop_assert_eq!(outcome(&one, &a), outcome(&split, &b));
             }
+        }
+    }
+
+    proptest::proptest! {
+        /// The bits `mark_blocked` sets are those of the walk's cells in the slab, found cell
+        /// by cell with `Slab::mark`.
+        #[test]
+        fn block_marks_are_the_walks_cells_in_the_slab(
+            a in (0.0f64..8.0, 0.0f64..6.0, 0.0f64..3.0),
+            b in (0.0f64..8.0, 0.0f64..6.0, 0.0f64..3.0),
+            z0 in 0u32..2,
+            depth in 1usize..3,
+            stride in 1usize..3,
+        ) {
+            let m = map();
+            let grid = m.grid;
+            let (a, b) = (Point3::new(a.0, a.1, a.2), Point3::new(b.0, b.1, b.2));
+            let [nx, ny, _] = m.block_dims.map(|v| v as usize);
+            let slab = Slab { lo: [0, 0, z0], dims: [nx, ny, depth] };
+            let mut got = vec![0u64; stride * LAYERS * slab.blocks()];
+            let lo = Cell::new(0, 0, z0 << BLOCK_BITS);
+            Walk::new(&grid, &a, &b).mark_blocked(lo, [nx, ny], stride * LAYERS, &mut got);
+            let mut want = vec![0u64; got.len()];
+            let mut walk = Walk::new(&grid, &a, &b);
+            loop {
+                if let Some((block, layer, bit)) = slab.mark(walk.cell()) {
+                    want[stride * LAYERS * block + layer] |= bit;
+                }
+                if walk.advance().is_none() {
+                    break;
+                }
+            }
+            proptest::prop_assert_eq!(got, want);
         }
     }
 

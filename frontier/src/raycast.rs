@@ -111,6 +111,92 @@ impl Walk {
     }
 }
 
+impl Walk {
+    /// Sets, in `words`, the bit of every cell of the walk that lies in a block-major bitset:
+    /// blocks of 8 × 8 × 8 cells counted from the block of `lo` (x fastest, `blocks` per row
+    /// and per layer), `stride` words per block, the 64 bits of each z layer of a block in one
+    /// word (x fastest, then y). Cells whose word falls outside `words` are skipped.
+    ///
+    /// The cells are those [`Walk::advance`] visits; the bit position is carried from cell to
+    /// cell (one add per step, another when the step enters a new block) instead of being
+    /// recomputed from the coordinates. Choosing the axis without branches, or cutting the
+    /// segment into independent slices across its major axis, measured slower.
+    #[inline]
+    pub(crate) fn mark_blocked(
+        self,
+        lo: Cell,
+        blocks: [usize; 2],
+        stride: usize,
+        words: &mut [u64],
+    ) {
+        const EDGE: i64 = 8;
+        let unit = [1i64, EDGE, EDGE * EDGE];
+        let row = 64 * stride as i64;
+        let bunit = [
+            row,
+            row * blocks[0] as i64,
+            row * (blocks[0] * blocks[1]) as i64,
+        ];
+        let c = [self.x, self.y, self.z];
+        let l = [lo.x >> 3, lo.y >> 3, lo.z >> 3];
+        let mut pos = 0i64;
+        for k in 0..3 {
+            pos +=
+                (i64::from(c[k] >> 3) - i64::from(l[k])) * bunit[k] + i64::from(c[k] & 7) * unit[k];
+        }
+        let len = 64 * words.len() as u64;
+        let mut mark = |pos: i64| {
+            // A position below the slab wraps to a large unsigned value.
+            #[allow(clippy::cast_sign_loss)]
+            let p = pos as u64;
+            if p < len {
+                words[(p >> 6) as usize] |= 1 << (p & 63);
+            }
+        };
+        mark(pos);
+        let step = self.step.map(i64::from);
+        // Position increments for a step inside a block and for one into the next block.
+        let inc = [0, 1, 2].map(|k| step[k] * unit[k]);
+        let winc = [0, 1, 2].map(|k| step[k] * (bunit[k] - 7 * unit[k]));
+        // The in-block coordinate right after a step into the next block.
+        let wrap = self.step.map(|s| if s > 0 { 0u32 } else { 7 });
+        let [mut x, mut y, mut z] = c;
+        let (mut tx, mut ty, mut tz) = (self.tx, self.ty, self.tz);
+        let [sx, sy, sz] = self.step.map(|s| s as u32);
+        for _ in 0..self.remaining {
+            let ax = tx <= ty && tx <= tz;
+            let ay = !ax && ty <= tz;
+            let d = if ax {
+                x = x.wrapping_add(sx);
+                tx = if x == self.end[0] {
+                    f64::INFINITY
+                } else {
+                    tx + self.dt[0]
+                };
+                if x & 7 == wrap[0] { winc[0] } else { inc[0] }
+            } else if ay {
+                y = y.wrapping_add(sy);
+                ty = if y == self.end[1] {
+                    f64::INFINITY
+                } else {
+                    ty + self.dt[1]
+                };
+                if y & 7 == wrap[1] { winc[1] } else { inc[1] }
+            } else {
+                z = z.wrapping_add(sz);
+                tz = if z == self.end[2] {
+                    f64::INFINITY
+                } else {
+                    tz + self.dt[2]
+                };
+                if z & 7 == wrap[2] { winc[2] } else { inc[2] }
+            };
+            pos += d;
+            mark(pos);
+        }
+    }
+}
+
 /// Visits, in order, every cell the segment from `a` to `b` passes through, from the cell of
 /// `a` to the cell of `b` inclusive (see [`Walk`]); stops early when `visit` returns `false`
 /// and then returns `false`.
