@@ -336,11 +336,7 @@ impl Frontiers {
                 }
                 (None, true) => {
                     pool.push(k);
-                    for d in &NEIGHBOURS_26 {
-                        if let Some(h) = grid.offset(c, *d).and_then(|n| self.owners.get(n)) {
-                            mark(h);
-                        }
-                    }
+                    self.owners.for_each_neighbour(c, &mut mark);
                 }
                 _ => {}
             }

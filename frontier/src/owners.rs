@@ -1,7 +1,20 @@
 //! The cluster that owns each frontier cell, stored block by block like the map.
 
-use crate::grid::Cell;
+use crate::grid::{Cell, NEIGHBOURS_26};
 use crate::map::{BLOCK_BITS, BLOCK_CELLS, NO_BLOCK, VoxelMap};
+
+/// The offsets of the 26 neighbours' indices within a block (x fastest, then y, then z), for
+/// a cell whose neighbours all lie in its block.
+const NEIGHBOUR_INDEX_OFFSETS: [isize; 26] = {
+    let mut out = [0; 26];
+    let mut n = 0;
+    while n < 26 {
+        let [x, y, z] = NEIGHBOURS_26[n];
+        out[n] = (x + (y << BLOCK_BITS) + (z << (2 * BLOCK_BITS))) as isize;
+        n += 1;
+    }
+    out
+};
 
 /// A map from frontier cells to small integer handles: a dense block directory over the grid
 /// and one array of handles per block that holds a frontier cell.
@@ -71,6 +84,45 @@ impl Owners {
         let slot = *self.directory.get(dir)?;
         let h = self.slots.get(slot as usize)?[i];
         h.checked_sub(1)
+    }
+
+    /// Calls `f` with the handle of every owned cell among the 26 neighbours of `c` (inside
+    /// the grid), in no particular order.
+    ///
+    /// When the neighbourhood lies inside `c`'s block, the block is found once and the 26
+    /// handles are read at fixed offsets from `c`'s index; an empty block ends the search.
+    #[inline]
+    pub(crate) fn for_each_neighbour(&self, c: Cell, mut f: impl FnMut(u32)) {
+        const INNER: core::ops::RangeInclusive<u32> = 1..=(1 << BLOCK_BITS) - 2;
+        let m = (1 << BLOCK_BITS) - 1;
+        let inner =
+            INNER.contains(&(c.x & m)) && INNER.contains(&(c.y & m)) && INNER.contains(&(c.z & m));
+        if let Some((dir, i)) = self.locate(c).filter(|_| inner) {
+            let Some(cells) = self
+                .directory
+                .get(dir)
+                .and_then(|&s| self.slots.get(s as usize))
+            else {
+                return;
+            };
+            for d in &NEIGHBOUR_INDEX_OFFSETS {
+                if let Some(h) = cells
+                    .get(i.wrapping_add_signed(*d))
+                    .and_then(|h| h.checked_sub(1))
+                {
+                    f(h);
+                }
+            }
+            return;
+        }
+        for d in &NEIGHBOURS_26 {
+            let n = |v: u32, dv: i32| v.checked_add_signed(dv);
+            if let (Some(x), Some(y), Some(z)) = (n(c.x, d[0]), n(c.y, d[1]), n(c.z, d[2]))
+                && let Some(h) = self.get(Cell::new(x, y, z))
+            {
+                f(h);
+            }
+        }
     }
 
     /// Sets the owner of `c` to `handle`; `false` (and nothing stored) for a cell outside the
@@ -197,6 +249,38 @@ mod tests {
                 all.insert(c, h);
             });
             prop_assert_eq!(all, reference);
+        }
+    }
+
+    proptest! {
+        /// The neighbours' handles are those found one `get` at a time, with the fast path
+        /// (the neighbourhood inside one block) and the general one.
+        #[test]
+        fn neighbour_handles_equal_lookups(
+            cells in proptest::collection::vec((0u32..17, 0u32..19, 0u32..9, 0u32..4), 1..200),
+            probes in proptest::collection::vec((0u32..20, 0u32..20, 0u32..12), 1..50),
+        ) {
+            let mut owners = Owners::default();
+            owners.reset([17, 19, 9]);
+            for (x, y, z, h) in cells {
+                owners.insert(Cell::new(x, y, z), h);
+            }
+            for (x, y, z) in probes {
+                let c = Cell::new(x, y, z);
+                let mut got = Vec::new();
+                owners.for_each_neighbour(c, |h| got.push(h));
+                let mut want: Vec<u32> = NEIGHBOURS_26
+                    .iter()
+                    .filter_map(|d| {
+                        let n = |v: u32, dv: i32| v.checked_add_signed(dv);
+                        Some(Cell::new(n(x, d[0])?, n(y, d[1])?, n(z, d[2])?))
+                    })
+                    .filter_map(|n| owners.get(n))
+                    .collect();
+                got.sort_unstable();
+                want.sort_unstable();
+                prop_assert_eq!(got, want);
+            }
         }
     }
 
