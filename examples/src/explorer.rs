@@ -89,6 +89,10 @@ const SAFETY_MARGIN: f64 = 0.05;
 /// Around the UAV, grid paths may keep as little clearance as the UAV has \[m\].
 const ESCAPE_RADIUS: f64 = 1.0;
 
+/// How far the short moves away from a too-close place go \[m\] (see
+/// [`safest`]).
+const ESCAPE_STEP: f64 = 1.0;
+
 /// Errors of an exploration run.
 #[derive(Debug, thiserror::Error)]
 pub enum ExploreError {
@@ -1240,11 +1244,22 @@ impl Explorer<'_> {
                 let second = Optimizer::<3, 3>::new(cfg, head, tail, inner)?
                     .optimize()?
                     .trajectory;
-                Some(if self.too_close(&second, 0.0)? {
-                    first
+                if !self.too_close(&second, 0.0)? {
+                    Some(second)
+                } else if force || self.reference.traj.is_none() || self.reference.done(t) {
+                    // It will be flown whatever it is: fly the one that keeps the most room.
+                    Some(safest(
+                        &self.map,
+                        self.config.flight.radius,
+                        &here,
+                        head,
+                        cfg,
+                        first,
+                        second,
+                    )?)
                 } else {
-                    second
-                })
+                    Some(first)
+                }
             } else {
                 Some(first)
             }
@@ -1301,6 +1316,78 @@ impl Explorer<'_> {
             s += 0.05;
         }
         Ok(false)
+    }
+}
+
+/// Of `first`, `second` and short moves from `here` (state `head`) to rest at the 26 points
+/// [`ESCAPE_STEP`] away in line of sight through known-free cells, the trajectory whose
+/// least clearance to a known obstacle is largest, then whose end has the most clearance
+/// (the first of equals): for a replan
+/// that must fly something while every planned trajectory comes too close. A UAV that
+/// finds itself too near a floor or wall backs away, and plans again from there.
+fn safest(
+    map: &VoxelMap,
+    radius: f64,
+    here: &Point3<f64>,
+    head: [[f64; 3]; 3],
+    cfg: OptimizerConfig,
+    first: Trajectory<3>,
+    second: Trajectory<3>,
+) -> Result<Trajectory<3>, ExploreError> {
+    let mut candidates = vec![second];
+    let steps = [-1.0, 0.0, 1.0];
+    for dz in steps {
+        for dy in steps {
+            for dx in steps {
+                let d = Vector3::new(dx, dy, dz);
+                if d == Vector3::zeros() {
+                    continue;
+                }
+                let q = here + d.normalize() * ESCAPE_STEP;
+                if map.state(&q) != frontier::CellState::Free || !map.line_of_sight(here, &q) {
+                    continue;
+                }
+                // The optimiser's errors only mean one move fewer to choose from.
+                let tail = [arr(&q), [0.0; 3], [0.0; 3]];
+                if let Ok(out) =
+                    Optimizer::<3, 3>::new(cfg, head, tail, &[]).and_then(|mut o| o.optimize())
+                {
+                    candidates.push(out.trajectory);
+                }
+            }
+        }
+    }
+    // By least clearance, then by the clearance at the end, where the next plan starts.
+    let margin = radius + SAFETY_MARGIN;
+    let room = |traj: &Trajectory<3>| -> Result<(f64, f64), ExploreError> {
+        let end = Point3::from(traj.position(traj.duration())?);
+        Ok((
+            least_clearance(map, traj, 2.0 * margin)?,
+            map.clearance(&end, 4.0 * margin),
+        ))
+    };
+    let mut best = (room(&first)?, first);
+    for traj in candidates {
+        let r = room(&traj)?;
+        if r > best.0 {
+            best = (r, traj);
+        }
+    }
+    Ok(best.1)
+}
+
+/// The least clearance to a known obstacle along `traj` (sampled every 0.05 s), up to
+/// `cap` \[m\].
+fn least_clearance(map: &VoxelMap, traj: &Trajectory<3>, cap: f64) -> Result<f64, ExploreError> {
+    let mut least = cap;
+    let mut s = 0.0f64;
+    loop {
+        let p = Point3::from(traj.position(s.min(traj.duration()))?);
+        least = least.min(map.clearance(&p, cap));
+        if s >= traj.duration() {
+            return Ok(least);
+        }
+        s += 0.05;
     }
 }
 
@@ -2033,6 +2120,39 @@ mod tests {
         // Without nodes, or with a clearance the gap cannot give, there is no bridge.
         assert!(bridge_path(&map, &[], &to, 0.5).is_none());
         assert!(bridge_path(&map, &reached, &to, 1.2).is_none());
+    }
+
+    #[test]
+    fn a_forced_replan_flies_the_move_that_keeps_the_most_room() {
+        let map = walled_map();
+        let radius = 0.25;
+        // 0.12 m above the floor cells' tops: closer than the UAV's radius.
+        let here = Point3::new(2.0, 3.0, 0.32);
+        let start = map.clearance(&here, 1.0);
+        assert!(start < radius, "{start}");
+        let cfg = OptimizerConfig::default().with_limits(2.0, 2.0);
+        let rest = [arr(&here), [0.0; 3], [0.0; 3]];
+        let to = |p: Point3<f64>| {
+            Optimizer::<3, 3>::new(cfg, rest, [arr(&p), [0.0; 3], [0.0; 3]], &[])
+                .unwrap()
+                .optimize()
+                .unwrap()
+                .trajectory
+        };
+        let end = |t: &Trajectory<3>| Point3::from(t.position(t.duration()).unwrap());
+        let cap = 2.0 * (radius + SAFETY_MARGIN);
+        // Planned trajectories that sink toward the floor: the move straight up wins.
+        let low = to(Point3::new(4.0, 3.0, 0.25));
+        assert!(least_clearance(&map, &low, cap).unwrap() < start - 0.05);
+        let chosen = safest(&map, radius, &here, rest, cfg, low.clone(), low.clone()).unwrap();
+        assert!((end(&chosen) - Point3::new(2.0, 3.0, 1.32)).norm() < 1e-6);
+        let least = least_clearance(&map, &chosen, cap).unwrap();
+        assert!((least - start).abs() < 1e-9, "{least} {start}");
+        // A planned trajectory that never comes closer than the start is kept (the first of
+        // equals).
+        let up = to(Point3::new(3.0, 3.0, 1.5));
+        let chosen = safest(&map, radius, &here, rest, cfg, up, low).unwrap();
+        assert!((end(&chosen) - Point3::new(3.0, 3.0, 1.5)).norm() < 1e-6);
     }
 
     #[test]
