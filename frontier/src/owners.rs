@@ -1,7 +1,7 @@
 //! The cluster that owns each frontier cell, stored block by block like the map.
 
 use crate::grid::{Cell, NEIGHBOURS_26};
-use crate::map::{BLOCK_BITS, BLOCK_CELLS, NO_BLOCK, VoxelMap};
+use crate::map::{BLOCK_BITS, BLOCK_CELLS, BLOCK_MASK, NO_BLOCK, VoxelMap};
 
 /// The offsets of the 26 neighbours' indices within a block (x fastest, then y, then z), for
 /// a cell whose neighbours all lie in its block.
@@ -93,8 +93,8 @@ impl Owners {
     /// handles are read at fixed offsets from `c`'s index; an empty block ends the search.
     #[inline]
     pub(crate) fn for_each_neighbour(&self, c: Cell, mut f: impl FnMut(u32)) {
-        const INNER: core::ops::RangeInclusive<u32> = 1..=(1 << BLOCK_BITS) - 2;
-        let m = (1 << BLOCK_BITS) - 1;
+        const INNER: core::ops::RangeInclusive<u32> = 1..=BLOCK_MASK - 1;
+        let m = BLOCK_MASK;
         let inner =
             INNER.contains(&(c.x & m)) && INNER.contains(&(c.y & m)) && INNER.contains(&(c.z & m));
         if let Some((dir, i)) = self.locate(c).filter(|_| inner) {

@@ -4,6 +4,7 @@
 use nalgebra::Point3;
 
 use crate::grid::{Cell, Grid};
+use crate::map::{BLOCK_BITS, BLOCK_MASK};
 
 /// A DDA walk over the cells of a segment, one face-adjacent step at a time.
 ///
@@ -129,8 +130,8 @@ impl Walk {
         stride: usize,
         words: &mut [u64],
     ) {
-        const EDGE: i64 = 8;
-        let unit = [1i64, EDGE, EDGE * EDGE];
+        let edge = 1i64 << BLOCK_BITS;
+        let unit = [1, edge, edge * edge];
         let row = 64 * stride as i64;
         let bunit = [
             row,
@@ -138,11 +139,11 @@ impl Walk {
             row * (blocks[0] * blocks[1]) as i64,
         ];
         let c = [self.x, self.y, self.z];
-        let l = [lo.x >> 3, lo.y >> 3, lo.z >> 3];
+        let l = [lo.x, lo.y, lo.z].map(|v| v >> BLOCK_BITS);
         let mut pos = 0i64;
         for k in 0..3 {
-            pos +=
-                (i64::from(c[k] >> 3) - i64::from(l[k])) * bunit[k] + i64::from(c[k] & 7) * unit[k];
+            pos += (i64::from(c[k] >> BLOCK_BITS) - i64::from(l[k])) * bunit[k]
+                + i64::from(c[k] & BLOCK_MASK) * unit[k];
         }
         let len = 64 * words.len() as u64;
         let mut mark = |pos: i64| {
@@ -157,9 +158,10 @@ impl Walk {
         let step = self.step.map(i64::from);
         // Position increments for a step inside a block and for one into the next block.
         let inc = [0, 1, 2].map(|k| step[k] * unit[k]);
-        let winc = [0, 1, 2].map(|k| step[k] * (bunit[k] - 7 * unit[k]));
+        let last = i64::from(BLOCK_MASK);
+        let winc = [0, 1, 2].map(|k| step[k] * (bunit[k] - last * unit[k]));
         // The in-block coordinate right after a step into the next block.
-        let wrap = self.step.map(|s| if s > 0 { 0u32 } else { 7 });
+        let wrap = self.step.map(|s| if s > 0 { 0u32 } else { BLOCK_MASK });
         let [mut x, mut y, mut z] = c;
         let (mut tx, mut ty, mut tz) = (self.tx, self.ty, self.tz);
         let [sx, sy, sz] = self.step.map(|s| s as u32);
@@ -173,7 +175,11 @@ impl Walk {
                 } else {
                     tx + self.dt[0]
                 };
-                if x & 7 == wrap[0] { winc[0] } else { inc[0] }
+                if x & BLOCK_MASK == wrap[0] {
+                    winc[0]
+                } else {
+                    inc[0]
+                }
             } else if ay {
                 y = y.wrapping_add(sy);
                 ty = if y == self.end[1] {
@@ -181,7 +187,11 @@ impl Walk {
                 } else {
                     ty + self.dt[1]
                 };
-                if y & 7 == wrap[1] { winc[1] } else { inc[1] }
+                if y & BLOCK_MASK == wrap[1] {
+                    winc[1]
+                } else {
+                    inc[1]
+                }
             } else {
                 z = z.wrapping_add(sz);
                 tz = if z == self.end[2] {
@@ -189,7 +199,11 @@ impl Walk {
                 } else {
                     tz + self.dt[2]
                 };
-                if z & 7 == wrap[2] { winc[2] } else { inc[2] }
+                if z & BLOCK_MASK == wrap[2] {
+                    winc[2]
+                } else {
+                    inc[2]
+                }
             };
             pos += d;
             mark(pos);
