@@ -303,9 +303,7 @@ impl Odometry {
             _ => Some(self.update(&scan, &predicted)),
         };
         let pose = self.state.pose();
-        for p in &self.deskewed {
-            self.map.insert(pose * p);
-        }
+        self.map.extend(self.deskewed.iter().map(|p| pose * p));
         self.frames += 1;
         if self
             .frames

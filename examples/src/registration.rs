@@ -225,16 +225,70 @@ impl VoxelCloud {
         true
     }
 
+    /// Adds each point as [`VoxelCloud::insert`] does, in order; the number added.
+    ///
+    /// Consecutive points of a scan mostly fall in the same block, which is then looked up
+    /// once rather than once a point.
+    pub fn extend(&mut self, points: impl IntoIterator<Item = Point3<f64>>) -> usize {
+        let mut added = 0;
+        let mut last: Option<([i64; 3], &mut VoxelBlock)> = None;
+        for p in points {
+            if !p.iter().all(|c| c.is_finite()) {
+                continue;
+            }
+            let (b, slot) = block_slot(voxel_key(&p, self.size));
+            let block = match last {
+                Some((key, block)) if key == b => block,
+                _ => &mut **self.blocks.entry(b).or_insert_with(|| {
+                    Box::new(VoxelBlock {
+                        used: 0,
+                        points: [Point3::origin(); 64],
+                    })
+                }),
+            };
+            if block.used & (1 << slot) == 0 {
+                block.used |= 1 << slot;
+                block.points[slot] = p;
+                added += 1;
+            }
+            last = Some((b, block));
+        }
+        self.len += added;
+        added
+    }
+
     /// Drops the points farther than `radius` from `centre`.
     pub fn retain_within(&mut self, centre: &Point3<f64>, radius: f64) {
         let r2 = radius * radius;
+        // Whole blocks well inside or well outside the sphere are decided by their box; the
+        // relative margins absorb the rounding of a point's voxel, so the points kept are
+        // those the per-point test keeps.
+        let (inside, outside) = (r2 * (1.0 - 1e-9), r2 * (1.0 + 1e-9));
+        let edge = 4.0 * self.size;
         let mut len = 0;
-        self.blocks.retain(|_, block| {
-            for slot in 0..64 {
-                if block.used & (1 << slot) != 0
-                    && (block.points[slot] - centre).norm_squared() > r2
-                {
-                    block.used &= !(1 << slot);
+        self.blocks.retain(|key, block| {
+            let (mut near, mut far) = (0.0, 0.0);
+            for a in 0..3 {
+                // Block coordinates are far below 2^53.
+                #[allow(clippy::cast_precision_loss)]
+                let lo = key[a] as f64 * edge;
+                let (d0, d1) = (centre[a] - lo, lo + edge - centre[a]);
+                let gap = (-d0).max(-d1).max(0.0);
+                let reach = d0.abs().max(d1.abs());
+                near += gap * gap;
+                far += reach * reach;
+            }
+            if near > outside {
+                return false;
+            }
+            if far >= inside {
+                let mut bits = block.used;
+                while bits != 0 {
+                    let slot = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if (block.points[slot] - centre).norm_squared() > r2 {
+                        block.used &= !(1 << slot);
+                    }
                 }
             }
             len += block.used.count_ones() as usize;
@@ -270,21 +324,36 @@ impl Neighbours for VoxelCloud {
             return;
         }
         let c = self.key(q);
-        // The last block looked up: neighbouring voxels mostly share it.
-        let mut cached: Option<([i64; 3], Option<&VoxelBlock>)> = None;
+        // The 27 voxels lie in at most two blocks along each axis: look the (at most eight)
+        // blocks up once, then index them by each voxel's offset from the lowest.
+        let lo = [(c[0] - 1) >> 2, (c[1] - 1) >> 2, (c[2] - 1) >> 2];
+        let span = [
+            ((c[0] + 1) >> 2) - lo[0],
+            ((c[1] + 1) >> 2) - lo[1],
+            ((c[2] + 1) >> 2) - lo[2],
+        ];
+        let mut near: [Option<&VoxelBlock>; 8] = [None; 8];
+        for bz in 0..=span[2] {
+            for by in 0..=span[1] {
+                for bx in 0..=span[0] {
+                    let key = [lo[0] + bx, lo[1] + by, lo[2] + bz];
+                    // Each offset is 0 or 1, so the index is in 0..8.
+                    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                    let at = (bx | (by << 1) | (bz << 2)) as usize;
+                    near[at] = self.blocks.get(&key).map(|x| &**x);
+                }
+            }
+        }
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    let (b, slot) = block_slot([c[0] + dx, c[1] + dy, c[2] + dz]);
-                    let block = match cached {
-                        Some((key, block)) if key == b => block,
-                        _ => {
-                            let block = self.blocks.get(&b).map(|x| &**x);
-                            cached = Some((b, block));
-                            block
-                        }
-                    };
-                    if let Some(block) = block
+                    let v = [c[0] + dx, c[1] + dy, c[2] + dz];
+                    let (b, slot) = block_slot(v);
+                    // As above: offsets of 0 or 1.
+                    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                    let at =
+                        ((b[0] - lo[0]) | ((b[1] - lo[1]) << 1) | ((b[2] - lo[2]) << 2)) as usize;
+                    if let Some(block) = near[at]
                         && block.used & (1 << slot) != 0
                     {
                         let p = block.points[slot];
@@ -552,6 +621,48 @@ mod tests {
             // nearest ones within that distance are found exactly.
             let within: Vec<f64> = d.iter().copied().filter(|&x| x <= size * size).take(5).collect();
             proptest::prop_assert_eq!(&g[..within.len()], &within[..]);
+        }
+    }
+
+    proptest::proptest! {
+        /// `extend` keeps what point-by-point `insert` keeps, and `retain_within` keeps
+        /// exactly the points within the radius (whole blocks are decided by their boxes).
+        #[test]
+        fn extend_and_retain_match_point_by_point(
+            pts in proptest::collection::vec((-3.0f64..3.0, -3.0f64..3.0, -1.0f64..1.0), 1..300),
+            c in (-3.0f64..3.0, -3.0f64..3.0, -1.0f64..1.0),
+            radius in 0.0f64..4.0,
+            size in 0.05f64..0.6,
+        ) {
+            let pts: Vec<Point3<f64>> = pts.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect();
+            let mut one = VoxelCloud::new(size);
+            let mut kept = Vec::new();
+            for p in &pts {
+                if one.insert(*p) {
+                    kept.push(*p);
+                }
+            }
+            let mut all = VoxelCloud::new(size);
+            let bad = [Point3::new(f64::NAN, 0.0, 0.0), Point3::new(0.0, f64::INFINITY, 0.0)];
+            let added = all.extend(pts.iter().copied().chain(bad));
+            proptest::prop_assert_eq!(added, kept.len());
+            proptest::prop_assert_eq!(all.len(), kept.len());
+            let sorted = |c: &VoxelCloud| {
+                let mut v: Vec<[f64; 3]> = c.points().map(|p| [p.x, p.y, p.z]).collect();
+                v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                v
+            };
+            proptest::prop_assert_eq!(sorted(&all), sorted(&one));
+            let centre = Point3::new(c.0, c.1, c.2);
+            all.retain_within(&centre, radius);
+            let mut want: Vec<[f64; 3]> = kept
+                .iter()
+                .filter(|p| (*p - centre).norm_squared() <= radius * radius)
+                .map(|p| [p.x, p.y, p.z])
+                .collect();
+            want.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            proptest::prop_assert_eq!(all.len(), want.len());
+            proptest::prop_assert_eq!(sorted(&all), want);
         }
     }
 
