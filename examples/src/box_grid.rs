@@ -270,10 +270,19 @@ impl BoxGrid {
         let ray = RayData::new(o, d);
         let mut best = max;
         let mut hit = false;
+        // The last boxes tested: a box met again in a later cell cannot improve the best hit
+        // (its entry is already counted, and the best only shrinks), so it is skipped.
+        let mut seen = [u32::MAX; MAILBOX];
+        let mut next = 0;
         // Boxes span several cells: a hit beyond the current cell may still lose to a box
         // in a later one, so the walk stops only once the best hit lies within it.
         let found = self.lattice.walk(o, d, max, |c, _, exit| {
             for &i in &self.items[self.start[c]..self.start[c + 1]] {
+                if seen.contains(&i) {
+                    continue;
+                }
+                seen[next] = i;
+                next = (next + 1) % MAILBOX;
                 if let Some(t) = self.boxes[i as usize].entry(&ray, best) {
                     best = t;
                     hit = true;
@@ -284,6 +293,9 @@ impl BoxGrid {
         found.or(hit.then_some(best))
     }
 }
+
+/// Boxes a ray remembers as tested (see [`BoxGrid::cast_ray`]).
+const MAILBOX: usize = 16;
 
 #[cfg(test)]
 mod tests {
