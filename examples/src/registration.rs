@@ -206,26 +206,11 @@ impl VoxelCloud {
     /// Adds `p` unless its voxel holds a point already (or it is not finite); whether it was
     /// added.
     pub fn insert(&mut self, p: Point3<f64>) -> bool {
-        if !p.iter().all(|c| c.is_finite()) {
-            return false;
-        }
-        let (b, slot) = block_slot(self.key(&p));
-        let block = self.blocks.entry(b).or_insert_with(|| {
-            Box::new(VoxelBlock {
-                used: 0,
-                points: [Point3::origin(); 64],
-            })
-        });
-        if block.used & (1 << slot) != 0 {
-            return false;
-        }
-        block.used |= 1 << slot;
-        block.points[slot] = p;
-        self.len += 1;
-        true
+        self.extend([p]) == 1
     }
 
-    /// Adds each point as [`VoxelCloud::insert`] does, in order; the number added.
+    /// Adds each point, in order, unless its voxel holds a point already (or it is not
+    /// finite); the number added.
     ///
     /// Consecutive points of a scan mostly fall in the same block, which is then looked up
     /// once rather than once a point.
