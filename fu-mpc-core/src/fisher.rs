@@ -1,14 +1,14 @@
 //! The Fisher / A-optimality table of equations (15)–(16).
 
 use core::f64::consts::TAU;
-use std::num::NonZeroUsize;
 
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use lidar_kinematics::{KinematicChain, LidarSensor};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::error::invalid;
+use crate::fov_gap::FovGap;
+use crate::knn::map_neighbours;
 use crate::{PeriodicPwl, Result};
 
 /// Settings of the Fisher table.
@@ -90,9 +90,9 @@ pub struct FisherTable {
 }
 
 impl FisherTable {
-    /// Builds the table: normals by PCA of each point's K nearest neighbours (a k-d tree), then
-    /// for each candidate angle θ_c the sum F(θ_c) = Σ n nᵀ over the points the sensor sees at
-    /// θ_c (in range and in its field of view, with the chain at θ_c), eq. (15).
+    /// Builds the table: normals by PCA of each point's K nearest neighbours (exact, from a grid
+    /// over the cloud), then for each candidate angle θ_c the sum F(θ_c) = Σ n nᵀ over the points
+    /// the sensor sees at θ_c (in range and in its field of view, with the chain at θ_c), eq. (15).
     ///
     /// Non-finite points are skipped (counted in [`FisherTable::skipped`]); an empty cloud gives
     /// F = 0 everywhere, so f = 3/ε at every angle (the documented fallback). Coplanar clouds
@@ -116,14 +116,7 @@ impl FisherTable {
         let skipped = cloud.len() - points.len();
         let normals = normals(&points, config.neighbours);
         let nc = config.candidates;
-        let gates = (0..nc)
-            .map(|c| {
-                // Knot counts are far below 2^53.
-                #[allow(clippy::cast_precision_loss)]
-                let theta = TAU * c as f64 / nc as f64;
-                sensor.visibility_gate(chain, body_pose, theta)
-            })
-            .collect::<core::result::Result<Vec<_>, _>>()?;
+        let walk = KnotWalk::new(chain, body_pose, sensor, nc)?;
         // Points outer, angles inner: each point's n nᵀ is formed once and the gates stay in
         // cache. Fixed chunks of points run in parallel and their sums are added in chunk
         // order, so the table does not depend on the number of threads.
@@ -133,7 +126,6 @@ impl FisherTable {
             .map(|(pts, nrm)| {
                 let mut acc = vec![[0.0f64; 6]; nc];
                 for (p, n) in pts.iter().zip(nrm) {
-                    let p = Point3::new(p[0], p[1], p[2]);
                     // eq. (15): the six distinct entries of n nᵀ.
                     let nn = [
                         n.x * n.x,
@@ -143,13 +135,11 @@ impl FisherTable {
                         n.y * n.z,
                         n.z * n.z,
                     ];
-                    for (gate, a) in gates.iter().zip(acc.iter_mut()) {
-                        if gate.contains(&p) {
-                            for (ai, v) in a.iter_mut().zip(nn) {
-                                *ai += v;
-                            }
+                    walk.for_each_seen(&Point3::new(p[0], p[1], p[2]), |c| {
+                        for (ai, v) in acc[c].iter_mut().zip(nn) {
+                            *ai += v;
                         }
-                    }
+                    });
                 }
                 acc
             })
@@ -205,6 +195,117 @@ impl FisherTable {
     }
 }
 
+/// The candidate angles at which the sensor sees a point, found without testing most of the
+/// angles it cannot see at.
+///
+/// As the motor turns, a point moves in the LiDAR frame on a circle about the motor axis, of
+/// radius ρ its distance to the axis: between knots Δθ apart it moves at most ρΔθ. A point
+/// whose circle never reaches the range shell or the elevation band is skipped whole; at a
+/// knot that does not see it, the knots it cannot reach the seen region by
+/// ([`FovGap::outside`] over ρΔθ) are skipped. Every knot tested uses the same test as
+/// [`lidar_kinematics::VisibilityGate::contains`], so the result is that of testing every knot.
+struct KnotWalk<'a> {
+    sensor: &'a LidarSensor,
+    /// World → LiDAR at each knot, as `LidarSensor::visibility_gate` prepares it.
+    gates: Vec<(Matrix3<f64>, Vector3<f64>)>,
+    /// World → motor base.
+    to_base: Isometry3<f64>,
+    /// Motor frame → LiDAR: its rotation's columns and its translation, so the LiDAR-frame
+    /// point at φ = ψ − θ is c₀ + ρ (cos φ e₁ + sin φ e₂) with c₀ = z e₃ + t.
+    e: [Vector3<f64>; 3],
+    t: Vector3<f64>,
+    gap: FovGap,
+    /// Knot spacing Δθ \[rad\].
+    spacing: f64,
+}
+
+impl<'a> KnotWalk<'a> {
+    fn new(
+        chain: &KinematicChain,
+        body_pose: &Isometry3<f64>,
+        sensor: &'a LidarSensor,
+        knots: usize,
+    ) -> Result<Self> {
+        let gates = (0..knots)
+            .map(|c| {
+                // Knot counts are far below 2^53.
+                #[allow(clippy::cast_precision_loss)]
+                let theta = TAU * c as f64 / knots as f64;
+                let to_lidar = chain.lidar_pose(body_pose, theta)?.inverse();
+                Ok((
+                    to_lidar.rotation.to_rotation_matrix().into_inner(),
+                    to_lidar.translation.vector,
+                ))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let ex = chain.extrinsics();
+        let to_base = (body_pose * ex.motor_base_in_body()).inverse();
+        let from_motor = ex.lidar_in_motor().inverse();
+        let m = from_motor.rotation.to_rotation_matrix().into_inner();
+        // Knot counts are far below 2^53.
+        #[allow(clippy::cast_precision_loss)]
+        let spacing = TAU / knots as f64;
+        Ok(Self {
+            sensor,
+            gates,
+            to_base,
+            e: [m.column(0).into(), m.column(1).into(), m.column(2).into()],
+            t: from_motor.translation.vector,
+            gap: FovGap::new(sensor),
+            spacing,
+        })
+    }
+
+    /// Calls `seen(c)` for each knot c (in increasing order) whose gate contains `p`.
+    fn for_each_seen(&self, p: &Point3<f64>, mut seen: impl FnMut(usize)) {
+        // A margin far above the rounding of the transforms.
+        let margin = 1e-9 * (1.0 + p.coords.amax());
+        let q = self.to_base * p;
+        let rho = (q.x * q.x + q.y * q.y).sqrt();
+        // The circle's range of heights z_L and of distances r_L from the LiDAR: each a
+        // sinusoid in φ, c + a cos φ + b sin φ, so within c ± √(a² + b²).
+        let c0 = self.e[2] * q.z + self.t;
+        let [e1, e2, _] = &self.e;
+        let z_amp = rho * e1.z.hypot(e2.z);
+        let (z_lo, z_hi) = (c0.z - z_amp - margin, c0.z + z_amp + margin);
+        let r2_mid = c0.norm_squared() + rho * rho;
+        let r2_amp = 2.0 * rho * c0.dot(e1).hypot(c0.dot(e2));
+        let r_lo = (r2_mid - r2_amp).max(0.0).sqrt() - margin;
+        let r_hi = (r2_mid + r2_amp).max(0.0).sqrt() + margin;
+        let g = &self.gap;
+        // Seen needs r_min ≤ r ≤ r_max and r sin β_min ≤ z ≤ r sin β_max somewhere on the circle.
+        let lowest = g.sin_el_min * if g.sin_el_min >= 0.0 { r_lo } else { r_hi };
+        let highest = g.sin_el_max * if g.sin_el_max >= 0.0 { r_hi } else { r_lo };
+        if r_hi < g.r_min || r_lo > g.r_max || z_hi < lowest || z_lo > highest {
+            return;
+        }
+        let step = rho * self.spacing;
+        let mut c = 0;
+        while c < self.gates.len() {
+            let (rot, tr) = &self.gates[c];
+            let pl = rot * p.coords + tr;
+            if self.sensor.sees_in_lidar_frame(&Point3::from(pl)) {
+                seen(c);
+                c += 1;
+                continue;
+            }
+            let d = g.outside(&pl) - margin;
+            if d <= 0.0 {
+                c += 1;
+            } else if step > 0.0 {
+                // Knots c + 1..=c + j with j ρΔθ < d cannot see the point.
+                // A finite count; far below usize::MAX for any sane ratio, saturating anyway.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let j = ((d / step).ceil() as usize).saturating_sub(1);
+                c = c.saturating_add(1 + j);
+            } else {
+                // On the axis: the point does not move.
+                return;
+            }
+        }
+    }
+}
+
 /// tr(A⁻¹) of a symmetric positive definite 3 × 3 matrix via its adjugate.
 fn trace_inverse(a: &Matrix3<f64>) -> f64 {
     let c00 = a[(1, 1)] * a[(2, 2)] - a[(1, 2)] * a[(2, 1)];
@@ -227,110 +328,32 @@ pub(crate) fn check_neighbours(k: usize) -> Result<()> {
 /// Points per parallel task of the visibility sums in [`FisherTable::build`].
 const GATE_CHUNK: usize = 2048;
 
-/// Points per parallel task of [`normals`].
-const NORMAL_CHUNK: usize = 512;
-
-/// Unit normals by PCA of each point's K nearest neighbours (K capped at the cloud size); a
-/// point with a degenerate neighbourhood gets the z axis.
+/// Unit normals by PCA of each point's K nearest neighbours (K capped at the cloud size;
+/// exact neighbours, ties by index, from [`crate::knn`]); a point with a degenerate
+/// neighbourhood gets the z axis.
 pub(crate) fn normals(points: &[[f64; 3]], k: usize) -> Vec<Vector3<f64>> {
     if points.len() < 3 {
         return vec![Vector3::z(); points.len()];
     }
-    let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(points) else {
-        return vec![Vector3::z(); points.len()];
-    };
-    let Some(k) = NonZeroUsize::new(k.min(points.len())) else {
-        return vec![Vector3::z(); points.len()];
-    };
-    // Queries in Morton order of their cells visit the tree's nodes in nearly the order it
-    // stores them, so consecutive queries find their nodes in cache.
-    let order = morton_order(points);
-    // Each point's normal is independent of the others: the queries run on rayon's threads,
-    // in fixed chunks, and the result is the same on any number of threads.
-    let sorted: Vec<Vector3<f64>> = order
-        .par_iter()
-        .with_min_len(NORMAL_CHUNK)
-        .map(|&i| {
-            let p = &points[i];
-            let nn = tree
-                .query(p)
-                .nearest_n::<SquaredEuclidean<f64>>(k)
-                .unsorted()
-                .execute();
-            let mut mean = Vector3::zeros();
-            let mut count = 0.0;
-            for r in &nn {
-                let q = points.get(usize::try_from(r.item).unwrap_or(usize::MAX));
-                if let Some(q) = q {
-                    mean += Vector3::from(*q);
-                    count += 1.0;
-                }
-            }
-            if count < 3.0 {
-                return Vector3::z();
-            }
-            mean /= count;
-            let mut cov = Matrix3::zeros();
-            for r in &nn {
-                if let Some(q) = points.get(usize::try_from(r.item).unwrap_or(usize::MAX)) {
-                    let d = Vector3::from(*q) - mean;
-                    cov += d * d.transpose();
-                }
-            }
-            least_eigenvector(&cov)
-        })
-        .collect();
-    let mut out = vec![Vector3::z(); points.len()];
-    for (&i, n) in order.iter().zip(sorted) {
-        out[i] = n;
-    }
-    out
-}
-
-/// Indices of `points` sorted by the Morton code of their cells on a 2^21 grid over the
-/// points' bounding box (ties by index, so the order is deterministic).
-fn morton_order(points: &[[f64; 3]]) -> Vec<usize> {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for d in 0..3 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
+    map_neighbours(points, k, |nn| {
+        if nn.len() < 3 {
+            return Vector3::z();
         }
-    }
-    let extent = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
-    let scale = if extent > 0.0 {
-        f64::from((1u32 << 21) - 1) / extent
-    } else {
-        0.0
-    };
-    let mut keyed: Vec<(u64, usize)> = points
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let mut key = 0u64;
-            for d in 0..3 {
-                // In [0, 2^21) by the scale; the float-to-int cast saturates anyway.
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                let c = ((p[d] - lo[d]) * scale) as u64;
-                key |= spread3(c) << d;
-            }
-            (key, i)
-        })
-        .collect();
-    keyed.sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
-}
-
-/// The low 21 bits of `x` spread to every third bit.
-fn spread3(x: u64) -> u64 {
-    let mut x = x & 0x1f_ffff;
-    x = (x | x << 32) & 0x1f_0000_0000_ffff;
-    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
-    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-    x = (x | x << 2) & 0x1249_2492_4924_9249;
-    x
+        let mut mean = Vector3::zeros();
+        for &j in nn {
+            mean += Vector3::from(points[j]);
+        }
+        // Neighbour counts are small.
+        #[allow(clippy::cast_precision_loss)]
+        let count = nn.len() as f64;
+        mean /= count;
+        let mut cov = Matrix3::zeros();
+        for &j in nn {
+            let d = Vector3::from(points[j]) - mean;
+            cov += d * d.transpose();
+        }
+        least_eigenvector(&cov)
+    })
 }
 
 /// The unit eigenvector of the smallest eigenvalue of a symmetric 3 × 3 matrix (see
@@ -432,33 +455,57 @@ mod tests {
         }
     }
 
-    proptest! {
-        #[test]
-        fn morton_order_is_a_permutation_along_the_curve(
-            v in proptest::collection::vec(-50.0f64..50.0, 0..120),
-        ) {
-            let points: Vec<[f64; 3]> = v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-            let order = morton_order(&points);
-            let mut seen = order;
-            seen.sort_unstable();
-            prop_assert_eq!(seen, (0..points.len()).collect::<Vec<_>>());
-        }
+    fn pose(v: &[f64]) -> Isometry3<f64> {
+        Isometry3::new(
+            Vector3::new(v[0], v[1], v[2]),
+            Vector3::new(v[3], v[4], v[5]),
+        )
     }
 
-    #[test]
-    fn spread_bits_interleave() {
-        assert_eq!(spread3(0b111), 0b1001001);
-        assert_eq!(spread3((1 << 21) - 1).count_ones(), 21);
-        assert_eq!(spread3(1 << 20), 1 << 60);
-        // Cells of the unit cube in Morton order: x first, then y, then z.
-        let pts = [
-            [1.0, 1.0, 1.0],
-            [0.0, 0.0, 1.0],
-            [0.0, 1.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0; 3],
-        ];
-        assert_eq!(morton_order(&pts), vec![4, 3, 2, 1, 0]);
+    proptest! {
+        /// The knot walk reports exactly the knots whose visibility gate contains the point,
+        /// for tilted and offset mounts, narrow and full fields of view, and points near and
+        /// far, on and off the motor axis.
+        #[test]
+        fn knot_walk_equals_testing_every_knot(
+            mount in proptest::collection::vec(-1.5f64..1.5, 6),
+            base in proptest::collection::vec(-1.0f64..1.0, 6),
+            body in proptest::collection::vec(-3.0f64..3.0, 6),
+            fov in (-3.2f64..3.2, 0.05f64..7.0, -1.5f64..1.5, 0.0f64..1.5),
+            range in (0.0f64..3.0, 1.0f64..60.0),
+            knots in 1usize..100,
+            cloud in proptest::collection::vec((-30.0f64..30.0, -30.0f64..30.0, -30.0f64..30.0), 1..40),
+        ) {
+            use lidar_kinematics::{Extrinsics, FieldOfView, RangeLimits};
+            let chain = KinematicChain::new(
+                Extrinsics::try_new(pose(&mount), pose(&base)).unwrap(),
+            );
+            let el_max = (fov.2 + fov.3).min(core::f64::consts::FRAC_PI_2);
+            let sensor = LidarSensor::new(
+                lidar_kinematics::SpinningPattern::ring16(),
+                RangeLimits::try_new(range.0, range.0 + range.1).unwrap(),
+            )
+            .with_field_of_view(FieldOfView::try_new(fov.0, fov.0 + fov.1, fov.2, el_max).unwrap());
+            let body = pose(&body);
+            let walk = KnotWalk::new(&chain, &body, &sensor, knots).unwrap();
+            // Points of the cloud, and points on the motor axis.
+            let axis = body * chain.extrinsics().motor_base_in_body();
+            let mut points: Vec<Point3<f64>> =
+                cloud.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect();
+            points.extend(cloud.iter().take(3).map(|&(_, _, z)| axis * Point3::new(0.0, 0.0, z)));
+            for p in &points {
+                let mut got = Vec::new();
+                walk.for_each_seen(p, |c| got.push(c));
+                let want: Vec<usize> = (0..knots)
+                    .filter(|&c| {
+                        #[allow(clippy::cast_precision_loss)]
+                        let theta = TAU * c as f64 / knots as f64;
+                        sensor.visibility_gate(&chain, &body, theta).unwrap().contains(p)
+                    })
+                    .collect();
+                prop_assert_eq!(got, want, "point {:?}", p);
+            }
+        }
     }
 
     #[test]

@@ -12,42 +12,7 @@ use crate::Result;
 use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
 use crate::error::{CoreError, invalid};
 use crate::fisher::{check_neighbours, normals};
-
-/// The sensor's field of view and range, prepared for [`IcrScan::sdf`].
-#[derive(Debug, Clone, Copy)]
-struct Gate {
-    r_min: f64,
-    r_max: f64,
-    sin_el_min: f64,
-    cos_el_min: f64,
-    sin_el_max: f64,
-    cos_el_max: f64,
-    /// cos and sin of the azimuth centre and of the half width; `None` for all azimuths.
-    azimuth: Option<(f64, f64, f64, f64)>,
-}
-
-impl Gate {
-    fn new(sensor: &LidarSensor) -> Self {
-        let (fov, range) = (sensor.field_of_view(), sensor.range());
-        let (sin_el_min, cos_el_min) = fov.elevation_min().sin_cos();
-        let (sin_el_max, cos_el_max) = fov.elevation_max().sin_cos();
-        let azimuth = (!fov.is_full_azimuth()).then(|| {
-            let half = 0.5 * fov.azimuth_width();
-            let (s, c) = (fov.azimuth_min() + half).sin_cos();
-            let (sin_h, cos_h) = half.sin_cos();
-            (c, s, cos_h, sin_h)
-        });
-        Self {
-            r_min: range.min(),
-            r_max: range.max(),
-            sin_el_min,
-            cos_el_min,
-            sin_el_max,
-            cos_el_max,
-            azimuth,
-        }
-    }
-}
+use crate::fov_gap::FovGap;
 
 /// What one horizon step adds: its information and, per point seen, (index, ∂w/∂θ).
 type StepTerms = (Matrix3<f64>, Vec<(usize, f64)>);
@@ -166,7 +131,7 @@ pub struct IcrScan {
     config: IcrScanConfig,
     chain: KinematicChain,
     sensor: LidarSensor,
-    gate: Gate,
+    gate: FovGap,
     probit: Probit,
     points: Vec<Point3<f64>>,
     normals: Vec<Vector3<f64>>,
@@ -183,7 +148,7 @@ impl IcrScan {
         Ok(Self {
             config,
             chain,
-            gate: Gate::new(&sensor),
+            gate: FovGap::new(&sensor),
             sensor,
             probit: Probit::new(config.kappa)?,
             points: Vec::new(),
