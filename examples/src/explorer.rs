@@ -1644,10 +1644,8 @@ pub fn explore(
         if config.controller.spins() && k.is_multiple_of(config.fisher_frames as u64) {
             let clock = Instant::now();
             let here = Point3::from(estimate.translation.vector);
-            let r2 = config.fisher_radius * config.fisher_radius;
             let near: Vec<Point3<f64>> = odo
-                .map_points()
-                .filter(|p| (*p - here).norm_squared() <= r2)
+                .map_points_within(&here, config.fisher_radius)
                 .copied()
                 .collect();
             // An even subsample keeps the table's cost bounded in large open scenes.

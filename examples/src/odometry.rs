@@ -191,6 +191,16 @@ impl Odometry {
         self.map.points()
     }
 
+    /// The local map's points within `radius` \[m\] of `centre`: those of
+    /// [`Odometry::map_points`], in the same order, without visiting the map's far blocks.
+    pub fn map_points_within<'a>(
+        &'a self,
+        centre: &'a Point3<f64>,
+        radius: f64,
+    ) -> impl Iterator<Item = &'a Point3<f64>> + 'a {
+        self.map.points_within(centre, radius)
+    }
+
     /// Propagates the state and its covariance to `t` with the last IMU sample held constant.
     fn propagate_to(&mut self, t: f64) {
         let dt = t - self.state.time;

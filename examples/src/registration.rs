@@ -181,6 +181,17 @@ pub(crate) fn voxel_key(p: &Point3<f64>, size: f64) -> [i64; 3] {
     p.coords.map(|c| (c / size).floor() as i64).into()
 }
 
+/// The positions of the set bits of `bits`, lowest first.
+fn set_bits(mut bits: u64) -> impl Iterator<Item = usize> {
+    core::iter::from_fn(move || {
+        (bits != 0).then(|| {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            s
+        })
+    })
+}
+
 /// The block of a voxel and the voxel's slot in it.
 fn block_slot(v: [i64; 3]) -> ([i64; 3], usize) {
     // v & 3 is in 0..4, so the casts are exact.
@@ -242,6 +253,24 @@ impl VoxelCloud {
         added
     }
 
+    /// Squared distances from `centre` to the nearest and the farthest point of block `key`'s
+    /// box, for voxels of edge `size`.
+    fn block_reach(size: f64, key: &[i64; 3], centre: &Point3<f64>) -> (f64, f64) {
+        let edge = 4.0 * size;
+        let (mut near, mut far) = (0.0, 0.0);
+        for a in 0..3 {
+            // Block coordinates are far below 2^53.
+            #[allow(clippy::cast_precision_loss)]
+            let lo = key[a] as f64 * edge;
+            let (d0, d1) = (centre[a] - lo, lo + edge - centre[a]);
+            let gap = (-d0).max(-d1).max(0.0);
+            let reach = d0.abs().max(d1.abs());
+            near += gap * gap;
+            far += reach * reach;
+        }
+        (near, far)
+    }
+
     /// Drops the points farther than `radius` from `centre`.
     pub fn retain_within(&mut self, centre: &Point3<f64>, radius: f64) {
         let r2 = radius * radius;
@@ -249,20 +278,10 @@ impl VoxelCloud {
         // relative margins absorb the rounding of a point's voxel, so the points kept are
         // those the per-point test keeps.
         let (inside, outside) = (r2 * (1.0 - 1e-9), r2 * (1.0 + 1e-9));
-        let edge = 4.0 * self.size;
         let mut len = 0;
+        let size = self.size;
         self.blocks.retain(|key, block| {
-            let (mut near, mut far) = (0.0, 0.0);
-            for a in 0..3 {
-                // Block coordinates are far below 2^53.
-                #[allow(clippy::cast_precision_loss)]
-                let lo = key[a] as f64 * edge;
-                let (d0, d1) = (centre[a] - lo, lo + edge - centre[a]);
-                let gap = (-d0).max(-d1).max(0.0);
-                let reach = d0.abs().max(d1.abs());
-                near += gap * gap;
-                far += reach * reach;
-            }
+            let (near, far) = Self::block_reach(size, key, centre);
             if near > outside {
                 return false;
             }
@@ -282,6 +301,29 @@ impl VoxelCloud {
         self.len = len;
     }
 
+    /// The points within `radius` of `centre`: the same points, in the same order, as
+    /// filtering [`VoxelCloud::points`] by distance, with whole blocks decided by their boxes
+    /// as in [`VoxelCloud::retain_within`].
+    pub fn points_within<'a>(
+        &'a self,
+        centre: &'a Point3<f64>,
+        radius: f64,
+    ) -> impl Iterator<Item = &'a Point3<f64>> + 'a {
+        let r2 = radius * radius;
+        let (inside, outside) = (r2 * (1.0 - 1e-9), r2 * (1.0 + 1e-9));
+        self.blocks.iter().flat_map(move |(key, b)| {
+            let (near, far) = Self::block_reach(self.size, key, centre);
+            let (used, test) = if near > outside {
+                (0, false)
+            } else {
+                (b.used, far >= inside)
+            };
+            set_bits(used)
+                .map(move |s| &b.points[s])
+                .filter(move |p| !test || (*p - centre).norm_squared() <= r2)
+        })
+    }
+
     /// Number of points.
     pub fn len(&self) -> usize {
         self.len
@@ -294,11 +336,9 @@ impl VoxelCloud {
 
     /// The points, in no particular order.
     pub fn points(&self) -> impl Iterator<Item = &Point3<f64>> {
-        self.blocks.values().flat_map(|b| {
-            (0..64)
-                .filter(move |s| b.used & (1 << s) != 0)
-                .map(move |s| &b.points[s])
-        })
+        self.blocks
+            .values()
+            .flat_map(|b| set_bits(b.used).map(move |s| &b.points[s]))
     }
 }
 
@@ -610,7 +650,8 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// `extend` keeps what point-by-point `insert` keeps, and `retain_within` keeps
+        /// `extend` keeps what point-by-point `insert` keeps, `points_within` lists what
+        /// filtering `points` lists, and `retain_within` keeps
         /// exactly the points within the radius (whole blocks are decided by their boxes).
         #[test]
         fn extend_and_retain_match_point_by_point(
@@ -639,6 +680,14 @@ mod tests {
             };
             proptest::prop_assert_eq!(sorted(&all), sorted(&one));
             let centre = Point3::new(c.0, c.1, c.2);
+            // `points_within` is `points` filtered, in the same order.
+            let near: Vec<Point3<f64>> = all.points_within(&centre, radius).copied().collect();
+            let filtered: Vec<Point3<f64>> = all
+                .points()
+                .filter(|p| (*p - centre).norm_squared() <= radius * radius)
+                .copied()
+                .collect();
+            proptest::prop_assert_eq!(near, filtered);
             all.retain_within(&centre, radius);
             let mut want: Vec<[f64; 3]> = kept
                 .iter()
