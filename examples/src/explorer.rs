@@ -1493,6 +1493,8 @@ pub fn explore(
     angles.push(AngleSample::new(0.0, encoder.read(latency)?.angle));
     let mut inside = false;
     let mut coverage = None;
+    // Coverage counted incrementally: the map never forgets a cell.
+    let mut counter: Option<crate::scene::CoverageCounter<'_>> = None;
     // Frame counts are small; times are exact ratios so ticks and frame ends meet.
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let frames = (config.max_time * 10.0).ceil() as u64;
@@ -1714,7 +1716,9 @@ pub fn explore(
         if (k + 1).is_multiple_of(config.coverage_frames as u64)
             && let Some(e) = mission.explorable
         {
-            let c = e.coverage(|p| ex.map.state(p) != frontier::CellState::Unknown);
+            let c = counter
+                .get_or_insert_with(|| e.coverage_counter())
+                .update(|p| ex.map.state(p) != frontier::CellState::Unknown);
             log.coverage.push((t1, c));
             coverage = Some(c);
         }
