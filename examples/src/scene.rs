@@ -317,6 +317,24 @@ impl CoverageCounter<'_> {
     }
 }
 
+/// The centre of cell `i` (x fastest) of a grid with lower corner `origin`, cells of edge
+/// `resolution` and `nx × ny` cells per layer.
+fn cell_centre(
+    origin: Point3<f64>,
+    resolution: f64,
+    [nx, ny]: [usize; 2],
+    i: usize,
+) -> Point3<f64> {
+    // Cell indices are far below 2^53.
+    #[allow(clippy::cast_precision_loss)]
+    let c = Vector3::new(
+        (i % nx) as f64,
+        ((i / nx) % ny) as f64,
+        (i / (nx * ny)) as f64,
+    );
+    origin + (c + Vector3::repeat(0.5)) * resolution
+}
+
 /// The explorable free cells of a scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Explorable {
@@ -348,16 +366,7 @@ impl Explorable {
         // Scene extents are metres over centimetres: the counts fit usize.
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let [nx, ny, nz] = [dims.x as usize, dims.y as usize, dims.z as usize];
-        let centre = |i: usize| {
-            // Cell indices are far below 2^53.
-            #[allow(clippy::cast_precision_loss)]
-            let c = Vector3::new(
-                (i % nx) as f64,
-                ((i / nx) % ny) as f64,
-                (i / (nx * ny)) as f64,
-            );
-            min + (c + Vector3::repeat(0.5)) * resolution
-        };
+        let centre = |i: usize| cell_centre(min, resolution, [nx, ny], i);
         use rayon::prelude::*;
         let solid: Vec<bool> = (0..nx * ny * nz)
             .into_par_iter()
@@ -428,14 +437,7 @@ impl Explorable {
     /// The centre of cell `i` (x fastest).
     fn centre(&self, i: usize) -> Point3<f64> {
         let [nx, ny, _] = self.dims;
-        // Cell indices are far below 2^53.
-        #[allow(clippy::cast_precision_loss)]
-        let c = Vector3::new(
-            (i % nx) as f64,
-            ((i / nx) % ny) as f64,
-            (i / (nx * ny)) as f64,
-        );
-        self.origin + (c + Vector3::repeat(0.5)) * self.resolution
+        cell_centre(self.origin, self.resolution, [nx, ny], i)
     }
 
     /// Explorable volume \[m³\].
