@@ -247,6 +247,13 @@ pub struct ExplorerConfig {
     /// leaves unknown gaps between sparse long rays, which cut the graph's known-free paths:
     /// at 0.1 m the maze run stopped after 20 s with 111 clusters unreachable.
     pub map_voxel: f64,
+    /// Whether beams that return nothing within the LiDAR's range clear the map's cells
+    /// along them up to its insertion range (as long returns do); default `false`: a beam
+    /// without a return says nothing. In a scene open to the sky (the shared `apartment.pcd`
+    /// has no ceiling) the space above the walls is seen only through such beams. A real
+    /// sensor also returns nothing from dark or mirror-like surfaces, which this would
+    /// clear; the simulated world has none. Needs a LiDAR range beyond the map's range.
+    pub clear_on_no_return: bool,
     /// Frontier clustering.
     pub frontier: FrontierConfig,
     /// Viewpoint sampling and dynamic clustering.
@@ -326,6 +333,7 @@ impl Default for ExplorerConfig {
             },
             motor: MotorLimits::default(),
             fisher: FisherConfig::default(),
+            clear_on_no_return: false,
             fisher_frames: 10,
             fisher_radius: 15.0,
             fisher_points: 3000,
@@ -1417,7 +1425,15 @@ pub fn explore(
     }
     let chain = explorer_chain();
     let sensor = LidarSensor::mid360();
-    let mut lidar = LidarSim::new(sensor.clone(), chain, fc.lidar_noise, seed);
+    if config.clear_on_no_return && sensor.range().max() <= config.map.max_range {
+        // A miss's end would lie within the map's range and count as a hit.
+        return Err(ExploreError::InvalidConfig {
+            what: "clear_on_no_return",
+            reason: "needs a LiDAR range beyond the map's insertion range",
+        });
+    }
+    let mut lidar = LidarSim::new(sensor.clone(), chain, fc.lidar_noise, seed)
+        .with_misses(config.clear_on_no_return);
     let mut imu = ImuSim::new(fc.imu_noise, 200.0, seed.wrapping_add(1));
     let motor = MotorModel::new(config.motor);
     let mut encoder = Encoder::new(fc.encoder);
@@ -1563,7 +1579,7 @@ pub fn explore(
         lidar.frame(world, k, t0, body, motor_angle, &mut points)?;
         log.timings.lidar.push(ms(clock));
         let clock = Instant::now();
-        odo.process_frame(t1, &points, &angles)?;
+        odo.process_frame_with_misses(t1, &points, lidar.misses(), &angles)?;
         log.timings.odometry.push(ms(clock));
         let truth = pose(r, &track, t1)?;
         let estimate = odo.state().pose();
@@ -1585,6 +1601,10 @@ pub fn explore(
             odo.last_scan()
         };
         world_points.extend(frame.iter().map(|p| estimate * p));
+        let returns = world_points.len();
+        // Each miss ends at the LiDAR's range, beyond the map's: the map clears up to its
+        // range and marks no hit.
+        world_points.extend(odo.last_misses().iter().map(|p| estimate * p));
         let origin =
             estimate * Point3::from(chain.lidar_in_body(motor_state.theta)?.translation.vector);
         if ex.map.bounds().contains(&origin) {
@@ -1594,7 +1614,7 @@ pub fn explore(
             let range2 = config.map.max_range * config.map.max_range;
             let grid = *ex.map.grid();
             ex.hit_cells.extend(
-                world_points
+                world_points[..returns]
                     .iter()
                     .filter(|p| (*p - origin).norm_squared() <= range2)
                     .filter_map(|p| grid.cell_of(p)),
@@ -1885,6 +1905,15 @@ mod tests {
             },
             ExplorerConfig {
                 map_voxel: f64::NAN,
+                ..ExplorerConfig::default()
+            },
+            // The Mid-360's 40 m do not reach beyond a 50 m map range: a miss would be a hit.
+            ExplorerConfig {
+                clear_on_no_return: true,
+                map: MapConfig {
+                    max_range: 50.0,
+                    ..MapConfig::default()
+                },
                 ..ExplorerConfig::default()
             },
         ] {

@@ -42,6 +42,10 @@ pub struct LidarSim {
     beams: Vec<Beam>,
     /// The LiDAR's poses every [`POSE_STEP`] across the current frame.
     poses: Vec<Isometry3<f64>>,
+    /// Whether frames also list the beams that returned nothing.
+    report_misses: bool,
+    /// The last frame's beams without a return (see [`LidarSim::misses`]).
+    misses: Vec<LidarPoint>,
 }
 
 impl LidarSim {
@@ -54,7 +58,25 @@ impl LidarSim {
             seed,
             beams: Vec::new(),
             poses: Vec::new(),
+            report_misses: false,
+            misses: Vec::new(),
         }
+    }
+
+    /// Makes frames also list the beams that return nothing within the range (as sensors
+    /// that report empty returns do); off by default. The returns and their noise do not
+    /// change.
+    #[must_use]
+    pub fn with_misses(mut self, report: bool) -> Self {
+        self.report_misses = report;
+        self
+    }
+
+    /// The beams of the last frame that returned nothing within the range, in the order they
+    /// were cast, each as its time and the point at the range's end along it, in the LiDAR
+    /// frame; empty unless [`LidarSim::with_misses`] turned them on.
+    pub fn misses(&self) -> &[LidarPoint] {
+        &self.misses
     }
 
     /// The sensor.
@@ -87,6 +109,7 @@ impl LidarSim {
         out: &mut Vec<LidarPoint>,
     ) -> Result<(), KinematicsError> {
         out.clear();
+        self.misses.clear();
         self.sensor.pattern().fill_frame(index, &mut self.beams);
         let range = *self.sensor.range();
         // The frame's span of beam times, sampled every `POSE_STEP`.
@@ -113,13 +136,15 @@ impl LidarSim {
                 .push(self.chain.lidar_pose(&body_pose(t), motor_angle(t))?);
         }
         let (poses, noise, seed) = (&self.poses, self.noise.range_std, self.seed);
-        let chunks: Vec<Vec<LidarPoint>> = self
+        let report = self.report_misses;
+        let chunks: Vec<(Vec<LidarPoint>, Vec<LidarPoint>)> = self
             .beams
             .par_chunks(BEAM_CHUNK)
             .enumerate()
             .map(|(c, beams)| {
                 let mut rng = Rng::new(chunk_seed(seed, index, c));
                 let mut pts = Vec::with_capacity(beams.len());
+                let mut misses = Vec::new();
                 for beam in beams {
                     let s = (beam.time_offset - lo) / step;
                     // In [0, steps − 1] after the clamp: the cast is exact.
@@ -137,21 +162,29 @@ impl LidarSim {
                     } else {
                         0.0
                     };
-                    let Some(r) = world.cast_ray(&origin, &dir, range.max()) else {
-                        continue;
-                    };
-                    let noisy = r + n;
-                    if range.contains(noisy) {
-                        pts.push(LidarPoint {
-                            time: t0 + beam.time_offset,
-                            point: Point3::from(beam.direction.into_inner() * noisy),
-                        });
+                    let time = t0 + beam.time_offset;
+                    let noisy = world.cast_ray(&origin, &dir, range.max()).map(|r| r + n);
+                    match noisy {
+                        Some(r) if range.contains(r) => pts.push(LidarPoint {
+                            time,
+                            point: Point3::from(beam.direction.into_inner() * r),
+                        }),
+                        // Nothing within the range; a return too close is not a miss.
+                        Some(r) if r < range.min() => {}
+                        _ if report => misses.push(LidarPoint {
+                            time,
+                            point: Point3::from(beam.direction.into_inner() * range.max()),
+                        }),
+                        _ => {}
                     }
                 }
-                pts
+                (pts, misses)
             })
             .collect();
-        out.extend(chunks.into_iter().flatten());
+        for (pts, misses) in chunks {
+            out.extend(pts);
+            self.misses.extend(misses);
+        }
         Ok(())
     }
 }
@@ -257,5 +290,60 @@ mod tests {
         );
         let mut h = Rng::new(5);
         assert_eq!(h.normal(), xs[0]);
+    }
+
+    /// Under an open sky, the beams without a return are listed when asked for, each ends at
+    /// the range along a ray that meets nothing within it, and the returns do not change.
+    #[test]
+    fn misses_are_the_beams_that_meet_nothing() {
+        // A floor and one wall, nothing above.
+        let world = World::from_boxes(&[
+            (
+                Point3::new(-30.0, -30.0, -1.0),
+                Point3::new(30.0, 30.0, 0.0),
+            ),
+            (Point3::new(5.0, -30.0, 0.0), Point3::new(6.0, 30.0, 3.0)),
+        ])
+        .unwrap();
+        let chain = KinematicChain::default();
+        let sensor = LidarSensor::mid360();
+        let pose = |t: f64| Isometry3::translation(t, 0.5 * t, 1.5);
+        let angle = |t: f64| 2.0 * t;
+        let mut plain = LidarSim::new(sensor.clone(), chain, LidarNoise::default(), 3);
+        let mut with =
+            LidarSim::new(sensor.clone(), chain, LidarNoise::default(), 3).with_misses(true);
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        plain.frame(&world, 2, 0.2, pose, angle, &mut a).unwrap();
+        with.frame(&world, 2, 0.2, pose, angle, &mut b).unwrap();
+        assert_eq!(a, b);
+        assert!(plain.misses().is_empty());
+        let misses = with.misses();
+        // Most of the sky is empty: many misses, and with the returns about one per beam
+        // (returns nearer than the minimum range are neither).
+        assert!(misses.len() > 5_000, "{}", misses.len());
+        let mut all = Vec::new();
+        sensor.pattern().fill_frame(2, &mut all);
+        let beams = all.len();
+        assert!(misses.len() + b.len() <= beams);
+        assert!(
+            misses.len() + b.len() + 50 >= beams,
+            "{} + {} of {beams}",
+            misses.len(),
+            b.len()
+        );
+        let range = sensor.range().max();
+        for m in misses {
+            assert!((m.point.coords.norm() - range).abs() < 1e-9);
+            let p = chain.lidar_pose(&pose(m.time), angle(m.time)).unwrap();
+            let dir = p.rotation * (m.point.coords / range);
+            let origin = Point3::from(p.translation.vector);
+            // Beyond the range once the noise is added, or nothing at all.
+            assert!(
+                world
+                    .cast_ray(&origin, &dir, range)
+                    .is_none_or(|r| r > range - 0.2),
+                "{m:?}"
+            );
+        }
     }
 }

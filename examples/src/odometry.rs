@@ -144,6 +144,8 @@ pub struct Odometry {
     map: VoxelCloud,
     frames: usize,
     deskewed: Vec<Point3<f64>>,
+    /// The last frame's beams without a return, deskewed like its points.
+    deskewed_misses: Vec<Point3<f64>>,
     timed: Vec<TimedPoint>,
 }
 
@@ -160,6 +162,7 @@ impl Odometry {
             map: VoxelCloud::new(config.map_voxel),
             frames: 0,
             deskewed: Vec::new(),
+            deskewed_misses: Vec::new(),
             timed: Vec::new(),
         }
     }
@@ -179,6 +182,13 @@ impl Odometry {
     /// [`NavState::pose`] to place it in the world.
     pub fn last_scan(&self) -> &[Point3<f64>] {
         &self.deskewed
+    }
+
+    /// The last frame's beams without a return (see [`Odometry::process_frame_with_misses`]),
+    /// deskewed into the body frame at its end like [`Odometry::last_scan`]; empty after
+    /// [`Odometry::process_frame`].
+    pub fn last_misses(&self) -> &[Point3<f64>] {
+        &self.deskewed_misses
     }
 
     /// Points in the local map.
@@ -273,6 +283,23 @@ impl Odometry {
         points: &[LidarPoint],
         angles: &[AngleSample],
     ) -> Result<FrameReport, OdometryError> {
+        self.process_frame_with_misses(t_end, points, &[], angles)
+    }
+
+    /// [`Odometry::process_frame`], also deskewing `misses`: points along the frame's beams
+    /// that returned nothing (e.g. each beam's end at the sensor's range), which
+    /// [`Odometry::last_misses`] then holds. They are not registered and do not enter the
+    /// local map.
+    ///
+    /// # Errors
+    /// As [`Odometry::process_frame`], for the misses too.
+    pub fn process_frame_with_misses(
+        &mut self,
+        t_end: f64,
+        points: &[LidarPoint],
+        misses: &[LidarPoint],
+        angles: &[AngleSample],
+    ) -> Result<FrameReport, OdometryError> {
         if t_end < self.state.time - TIME_TOLERANCE {
             return Err(OdometryError::OutOfOrder {
                 what: "frame end",
@@ -293,9 +320,13 @@ impl Odometry {
             angles.push(AngleSample::new(t_end, b.angle + rate * (t_end - b.time)));
         }
         self.timed.clear();
-        self.timed
-            .extend(points.iter().map(|p| TimedPoint::new(p.time, p.point)));
-        self.deskewed.resize(points.len(), Point3::origin());
+        self.timed.extend(
+            points
+                .iter()
+                .chain(misses)
+                .map(|p| TimedPoint::new(p.time, p.point)),
+        );
+        self.deskewed.resize(self.timed.len(), Point3::origin());
         if self.poses.len() == 1 {
             // A frame end at the last pose time: deskew needs a span.
             self.poses.push(PoseSample::new(t_end + 1e-9, predicted));
@@ -307,6 +338,10 @@ impl Odometry {
             DeskewTarget::BodyAt(t_end),
             &mut self.deskewed,
         )?;
+        self.deskewed_misses.clear();
+        self.deskewed_misses
+            .extend_from_slice(&self.deskewed[points.len()..]);
+        self.deskewed.truncate(points.len());
         let scan = thin(&self.deskewed, self.config.scan_voxel);
         let registration = match self.frames {
             0 => None,

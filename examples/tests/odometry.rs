@@ -246,3 +246,73 @@ fn the_filter_corrects_a_wrong_initial_velocity() {
     let worst = errors.iter().map(|e| e.0.norm()).fold(0.0, f64::max);
     assert!(worst < 0.25, "largest position error {worst} m");
 }
+
+/// Beams without a return are deskewed exactly as returns are, and change neither the
+/// estimate nor the local map.
+#[test]
+fn misses_are_deskewed_like_returns_and_change_nothing_else() {
+    // A floor and two walls under an open sky.
+    let world = fu_mpc_examples::world::World::from_boxes(&[
+        (
+            Point3::new(-20.0, -20.0, -1.0),
+            Point3::new(20.0, 20.0, 0.0),
+        ),
+        (Point3::new(8.0, -20.0, 0.0), Point3::new(9.0, 20.0, 4.0)),
+        (Point3::new(-20.0, 7.0, 0.0), Point3::new(20.0, 8.0, 4.0)),
+    ])
+    .unwrap();
+    let chain = KinematicChain::default();
+    let mut lidar =
+        LidarSim::new(LidarSensor::mid360(), chain, LidarNoise::default(), 7).with_misses(true);
+    let mut imu = ImuSim::new(ImuNoise::default(), 200.0, 9);
+    let encoder = EncoderConfig::try_new(1 << 16, 0.0).unwrap();
+    let motor = |t: f64| 100f64.to_radians() * t;
+    let start = NavState {
+        time: 0.0,
+        position: Circle::position(0.0),
+        velocity: Circle::velocity(0.0),
+        attitude: Circle::attitude(0.0),
+    };
+    let mut with = Odometry::new(chain, OdometryConfig::default(), start);
+    let mut without = with.clone();
+    let mut as_returns = with.clone();
+    let mut points = Vec::new();
+    for k in 0..5u64 {
+        let t0 = k as f64 / 10.0;
+        for i in 0..20u64 {
+            let t = (20 * k + i) as f64 / 200.0;
+            let h = 1e-4;
+            let rate = body_rate(&Circle::attitude(t - h), &Circle::attitude(t + h), 2.0 * h);
+            let s = imu.sample(t, &Circle::attitude(t), &Circle::acceleration(t), &rate);
+            for odo in [&mut with, &mut without, &mut as_returns] {
+                odo.push_imu(&s).unwrap();
+            }
+        }
+        lidar
+            .frame(&world, k, t0, Circle::pose, motor, &mut points)
+            .unwrap();
+        let misses = lidar.misses().to_vec();
+        assert!(misses.len() > 1_000, "{}", misses.len());
+        let angles: Vec<AngleSample> = (0..=100u64)
+            .map(|i| {
+                let t = (100 * k + i) as f64 / 1000.0;
+                AngleSample::new(t, encoder.quantise(motor(t)).unwrap())
+            })
+            .collect();
+        let t1 = (k + 1) as f64 / 10.0;
+        // The deskew of the frame before this one's registration: the same poses for all.
+        let mut combined = points.clone();
+        combined.extend_from_slice(&misses);
+        as_returns.process_frame(t1, &combined, &angles).unwrap();
+        with.process_frame_with_misses(t1, &points, &misses, &angles)
+            .unwrap();
+        without.process_frame(t1, &points, &angles).unwrap();
+        assert_eq!(with.last_misses(), &as_returns.last_scan()[points.len()..]);
+        assert_eq!(with.last_scan(), without.last_scan());
+        assert_eq!(with.state().pose(), without.state().pose());
+        assert_eq!(with.map_len(), without.map_len());
+        assert!(without.last_misses().is_empty());
+        // Keep the third odometry on the same track: only its deskew is compared.
+        as_returns = with.clone();
+    }
+}

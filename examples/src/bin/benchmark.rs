@@ -44,6 +44,11 @@ struct Args {
     /// Time budget of each run, simulated seconds.
     #[arg(long, default_value_t = 600.0)]
     max_time: f64,
+    /// Beams that return nothing clear the map along them up to its range (for scenes open
+    /// to the sky); off by default. Runs with it are kept apart (their directories end in
+    /// `-clear`).
+    #[arg(long)]
+    clear_no_return: bool,
     /// Runs at once (default: one per core).
     #[arg(long)]
     jobs: Option<usize>,
@@ -52,8 +57,15 @@ struct Args {
     out: PathBuf,
 }
 
-fn run_dir(out: &Path, scene: &str, controller: &ControllerKind, seed: u64) -> PathBuf {
-    let name = format!("{scene}-{controller}-{seed}").replace([':', '/', '\\'], "_");
+fn run_dir(
+    out: &Path,
+    scene: &str,
+    controller: &ControllerKind,
+    seed: u64,
+    clear: bool,
+) -> PathBuf {
+    let suffix = if clear { "-clear" } else { "" };
+    let name = format!("{scene}-{controller}-{seed}{suffix}").replace([':', '/', '\\'], "_");
     out.join("runs").join(name)
 }
 
@@ -63,11 +75,13 @@ fn run_one(
     controller: ControllerKind,
     seed: u64,
     max_time: f64,
+    clear_on_no_return: bool,
     dir: &Path,
 ) -> Result<String, Box<dyn std::error::Error + Send + Sync>> {
     let config = ExplorerConfig {
         controller,
         max_time,
+        clear_on_no_return,
         ..ExplorerConfig::default()
     };
     let scene = load_scene(
@@ -150,7 +164,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let todo: Vec<_> = runs
         .iter()
         .filter(|(s, c, seed)| {
-            !run_dir(&args.out, s, c, *seed)
+            !run_dir(&args.out, s, c, *seed, args.clear_no_return)
                 .join("summary.json")
                 .exists()
         })
@@ -164,8 +178,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let failures: Vec<String> = todo
         .par_iter()
         .filter_map(|(scene, controller, seed)| {
-            let dir = run_dir(&args.out, scene, controller, *seed);
-            match run_one(scene, *controller, *seed, args.max_time, &dir) {
+            let dir = run_dir(&args.out, scene, controller, *seed, args.clear_no_return);
+            match run_one(
+                scene,
+                *controller,
+                *seed,
+                args.max_time,
+                args.clear_no_return,
+                &dir,
+            ) {
                 Ok(screen) => {
                     println!("{screen}");
                     None
@@ -182,8 +203,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     writeln!(
         md,
         "Means over seeds {:?}; time budget {} s. Exploration time and trajectory length are \
-         averaged over finished runs only (— when none finished).\n",
-        args.seeds, args.max_time
+         averaged over finished runs only (— when none finished).{}\n",
+        args.seeds,
+        args.max_time,
+        if args.clear_no_return {
+            " Beams that return nothing clear the map along them (`--clear-no-return`)."
+        } else {
+            ""
+        }
     )?;
     for scene_spec in &args.scenes {
         let mut plot = LinePlot {
@@ -201,7 +228,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .seeds
                 .iter()
                 .filter_map(|&seed| {
-                    let p = run_dir(&args.out, scene_spec, controller, seed).join("summary.json");
+                    let p = run_dir(
+                        &args.out,
+                        scene_spec,
+                        controller,
+                        seed,
+                        args.clear_no_return,
+                    )
+                    .join("summary.json");
                     serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok()
                 })
                 .collect();
@@ -239,7 +273,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 all("realtime_factor"),
             )?;
             if let Some(&seed) = args.seeds.first() {
-                let dir = run_dir(&args.out, scene_spec, controller, seed);
+                let dir = run_dir(
+                    &args.out,
+                    scene_spec,
+                    controller,
+                    seed,
+                    args.clear_no_return,
+                );
                 plot.series.push(Series {
                     label: controller.to_string(),
                     color: PALETTE[ci % PALETTE.len()],

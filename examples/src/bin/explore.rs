@@ -44,6 +44,10 @@ struct Args {
     /// Output directory.
     #[arg(long, default_value = "out/explore")]
     out: PathBuf,
+    /// Beams that return nothing clear the map along them up to its range (for scenes open
+    /// to the sky, e.g. a cloud without a ceiling); off by default.
+    #[arg(long)]
+    clear_no_return: bool,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -65,6 +69,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let config = ExplorerConfig {
         controller: args.controller,
         max_time: args.max_time,
+        clear_on_no_return: args.clear_no_return,
         ..ExplorerConfig::default()
     };
     let scene = load_scene(
