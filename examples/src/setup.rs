@@ -89,7 +89,7 @@ pub fn load_scene(
         area.start = s;
     }
     let explorable = Explorable::from_fn(area.min, area.max, &area.start, resolution, |p| {
-        world.distance(p) < CLOUD_VOXEL
+        world.closer_than(p, CLOUD_VOXEL)
     });
     let name = path
         .file_stem()

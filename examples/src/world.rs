@@ -79,6 +79,39 @@ impl VoxelGrid {
         Some(g)
     }
 
+    /// Whether an occupied voxel meets the cube of half-edge `r` about `p` (every voxel within
+    /// `r` of `p` does).
+    fn any_within(&self, p: &Point3<f64>, r: f64) -> bool {
+        let l = &self.lattice;
+        let mut lo = [0usize; 3];
+        let mut hi = [0usize; 3];
+        for k in 0..3 {
+            let a = ((p[k] - r - l.lo[k]) / l.cell).floor();
+            let b = ((p[k] + r - l.lo[k]) / l.cell).floor();
+            // Dimensions are below 2^34: exact in f64.
+            #[allow(clippy::cast_precision_loss)]
+            let top = (l.dims[k] - 1) as f64;
+            if !(a <= top && b >= 0.0) {
+                // Outside the grid on this axis, or NaN.
+                return false;
+            }
+            // Clamped into [0, top]: the casts are exact.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            {
+                lo[k] = a.max(0.0) as usize;
+                hi[k] = b.min(top) as usize;
+            }
+        }
+        (lo[2]..=hi[2]).any(|z| {
+            (lo[1]..=hi[1]).any(|y| {
+                (lo[0]..=hi[0]).any(|x| {
+                    let i = l.index([x, y, z]);
+                    self.bits[i >> 6] & (1 << (i & 63)) != 0
+                })
+            })
+        })
+    }
+
     /// The first occupied voxel along the ray, by 3-D DDA: the distance at which the ray
     /// enters it, within `max`.
     fn cast_ray(&self, o: &Point3<f64>, d: &Vector3<f64>, max: f64) -> Option<f64> {
@@ -256,6 +289,22 @@ impl World {
         .filter(|t| t.is_finite())
     }
 
+    /// Whether a box or voxel lies closer than `d` \[m\] to `p`: exactly
+    /// `self.distance(p) < d`, but in a voxel world a point with no voxel near it is answered
+    /// from the voxels' bit grid without a distance query (building a point cloud's
+    /// explorable space asks this of every cell).
+    pub fn closer_than(&self, p: &Point3<f64>, d: f64) -> bool {
+        if let Some(Geometry::Voxels(_, grid)) = &self.geometry
+            && d.is_finite()
+            && p.iter().all(|v| v.is_finite())
+            // The margin covers parry3d's f32 rounding (micrometres at scene coordinates).
+            && !grid.any_within(p, d.max(0.0) + 1e-3)
+        {
+            return false;
+        }
+        self.distance(p) < d
+    }
+
     /// Distance from `p` to the nearest box or voxel \[m\]; 0 inside one, infinite in an empty
     /// world.
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
@@ -392,6 +441,32 @@ mod tests {
             }
             let truth = nearest_box(&boxes, &origin);
             prop_assert!((w.distance(&origin) - truth).abs() < 1e-4 * (1.0 + truth), "{} vs {}", w.distance(&origin), truth);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// `closer_than` answers exactly as a distance query does, near voxels, far from
+        /// them, outside the voxels' box and for non-finite input.
+        #[test]
+        fn closer_than_equals_the_distance_test(
+            pts in proptest::collection::vec((-3.0f64..3.0, -3.0f64..3.0, -3.0f64..3.0), 1..40),
+            qs in proptest::collection::vec((-5.0f64..5.0, -5.0f64..5.0, -5.0f64..5.0), 40),
+            d in 0.0f64..1.5,
+            size in 0.1f64..0.6,
+        ) {
+            let cloud: Vec<Point3<f64>> = pts.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect();
+            let w = World::from_points(&cloud, size).unwrap();
+            // Points near the cloud's points, where the answer turns.
+            let near = cloud.iter().map(|p| p + Vector3::new(d * 0.7, -d * 0.4, size * 0.5));
+            let queries = qs.iter().map(|&(x, y, z)| Point3::new(x, y, z)).chain(near);
+            for q in queries {
+                prop_assert_eq!(w.closer_than(&q, d), w.distance(&q) < d, "{} at {}", q, d);
+            }
+            let nan = Point3::new(f64::NAN, 0.0, 0.0);
+            prop_assert_eq!(w.closer_than(&nan, d), w.distance(&nan) < d);
+            prop_assert_eq!(w.closer_than(&cloud[0], f64::INFINITY), w.distance(&cloud[0]) < f64::INFINITY);
         }
     }
 
