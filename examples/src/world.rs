@@ -80,7 +80,7 @@ impl VoxelGrid {
     }
 
     /// Whether an occupied voxel meets the cube of half-edge `r` about `p` (every voxel within
-    /// `r` of `p` does).
+    /// `r` of `p` does); also `true`, without looking, for a cube of more than 4096 voxels.
     fn any_within(&self, p: &Point3<f64>, r: f64) -> bool {
         let l = &self.lattice;
         let mut lo = [0usize; 3];
@@ -101,6 +101,11 @@ impl VoxelGrid {
                 lo[k] = a.max(0.0) as usize;
                 hi[k] = b.min(top) as usize;
             }
+        }
+        let cells: usize = (0..3).map(|k| hi[k] - lo[k] + 1).product();
+        if cells > 4096 {
+            // A large cube: the distance query is the cheaper answer.
+            return true;
         }
         (lo[2]..=hi[2]).any(|z| {
             (lo[1]..=hi[1]).any(|y| {
