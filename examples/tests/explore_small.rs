@@ -65,7 +65,7 @@ fn a_room_open_to_the_sky_is_explored_with_misses_clearing_the_map() {
     ])
     .unwrap();
     let (min, max, start) = (p(0.0, 0.0, 0.0), p(8.0, 6.0, 3.0), p(2.0, 3.0, 1.5));
-    let explorable = Explorable::from_fn(min, max, &start, 0.2, |q| world.distance(q) < 0.05);
+    let explorable = Explorable::from_fn(min, max, &start, 0.2, |q| world.closer_than(q, 0.05));
     let mission = Mission {
         world: &world,
         min,

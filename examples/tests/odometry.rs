@@ -4,7 +4,7 @@
 use fu_mpc_examples::lidar::{LidarNoise, LidarSim};
 use fu_mpc_examples::odometry::{NavState, Odometry, OdometryConfig};
 use fu_mpc_examples::scene::Scene;
-use fu_mpc_examples::uav::{ImuNoise, ImuSim, body_rate, flat_attitude};
+use fu_mpc_examples::uav::{ImuNoise, ImuSample, ImuSim, body_rate, flat_attitude};
 use lidar_kinematics::{AngleSample, EncoderConfig, KinematicChain, LidarSensor};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
@@ -103,6 +103,29 @@ fn fly_with(
     errors.iter().map(|e| e.0.norm()).fold(0.0, f64::max)
 }
 
+/// The IMU samples of frame `k` of path `P`, at 200 Hz in [k/10, (k + 1)/10).
+fn frame_imu<P: Path>(imu: &mut ImuSim, k: u64) -> Vec<ImuSample> {
+    (0..20u64)
+        .map(|i| {
+            // Times as exact ratios, so frame ends and IMU ticks coincide.
+            let t = (20 * k + i) as f64 / 200.0;
+            let h = 1e-4;
+            let rate = body_rate(&P::attitude(t - h), &P::attitude(t + h), 2.0 * h);
+            imu.sample(t, &P::attitude(t), &P::acceleration(t), &rate)
+        })
+        .collect()
+}
+
+/// The encoder's angles across frame `k`, every millisecond.
+fn frame_angles(encoder: &EncoderConfig, motor: impl Fn(f64) -> f64, k: u64) -> Vec<AngleSample> {
+    (0..=100u64)
+        .map(|i| {
+            let t = (100 * k + i) as f64 / 1000.0;
+            AngleSample::new(t, encoder.quantise(motor(t)).unwrap())
+        })
+        .collect()
+}
+
 /// Flies path `P` through `scene` for `seconds` with the motor at 100 deg/s, the odometry
 /// starting with `velocity_error` in its velocity; returns its position and velocity errors
 /// (estimate − truth) at every frame end \[m, m/s\].
@@ -135,25 +158,14 @@ fn fly_path<P: Path>(
     let mut errors = Vec::new();
     let frames = (seconds * 10.0).round() as u64;
     for k in 0..frames {
-        // Times as exact ratios, so frame ends and IMU ticks coincide.
         let t0 = k as f64 / 10.0;
-        // IMU samples in [t0, t0 + 0.1).
-        for i in 0..20u64 {
-            let t = (20 * k + i) as f64 / 200.0;
-            let h = 1e-4;
-            let rate = body_rate(&P::attitude(t - h), &P::attitude(t + h), 2.0 * h);
-            let s = imu.sample(t, &P::attitude(t), &P::acceleration(t), &rate);
+        for s in frame_imu::<P>(&mut imu, k) {
             odo.push_imu(&s).unwrap();
         }
         lidar
             .frame(&world, k, t0, P::pose, motor, &mut points)
             .unwrap();
-        let angles: Vec<AngleSample> = (0..=100u64)
-            .map(|i| {
-                let t = (100 * k + i) as f64 / 1000.0;
-                AngleSample::new(t, encoder.quantise(motor(t)).unwrap())
-            })
-            .collect();
+        let angles = frame_angles(&encoder, motor, k);
         let t1 = (k + 1) as f64 / 10.0;
         odo.process_frame(t1, &points, &angles).unwrap();
         errors.push((
@@ -279,11 +291,7 @@ fn misses_are_deskewed_like_returns_and_change_nothing_else() {
     let mut points = Vec::new();
     for k in 0..5u64 {
         let t0 = k as f64 / 10.0;
-        for i in 0..20u64 {
-            let t = (20 * k + i) as f64 / 200.0;
-            let h = 1e-4;
-            let rate = body_rate(&Circle::attitude(t - h), &Circle::attitude(t + h), 2.0 * h);
-            let s = imu.sample(t, &Circle::attitude(t), &Circle::acceleration(t), &rate);
+        for s in frame_imu::<Circle>(&mut imu, k) {
             for odo in [&mut with, &mut without, &mut as_returns] {
                 odo.push_imu(&s).unwrap();
             }
@@ -293,12 +301,7 @@ fn misses_are_deskewed_like_returns_and_change_nothing_else() {
             .unwrap();
         let misses = lidar.misses().to_vec();
         assert!(misses.len() > 1_000, "{}", misses.len());
-        let angles: Vec<AngleSample> = (0..=100u64)
-            .map(|i| {
-                let t = (100 * k + i) as f64 / 1000.0;
-                AngleSample::new(t, encoder.quantise(motor(t)).unwrap())
-            })
-            .collect();
+        let angles = frame_angles(&encoder, motor, k);
         let t1 = (k + 1) as f64 / 10.0;
         // The deskew of the frame before this one's registration: the same poses for all.
         let mut combined = points.clone();
