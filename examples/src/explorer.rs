@@ -40,11 +40,12 @@ use lidar_kinematics::{
 };
 use minco::{MincoError, Optimizer, OptimizerConfig, Trajectory};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
 use topo_tsp::{CostConfig, NodeId, SolverConfig, TopoGraph, TspError, cost_matrix, solve_open};
 
 use crate::flight::{FlightConfig, FlightError, Tracking};
 use crate::lidar::LidarSim;
+use crate::mission::MissionCache;
 use crate::odometry::{NavState, Odometry, OdometryError};
 use crate::scene::Explorable;
 use crate::uav::{ImuSim, body_rate, flat_attitude};
@@ -899,72 +900,6 @@ fn trajectory_head(
     ))
 }
 
-/// The frontier clusters the mission asks for: at least [`FrontierConfig::min_cluster_cells`]
-/// cells, more than a quarter of them inside the region, not [`surface_bound`] and never hit.
-///
-/// A frontier cell a return has ended in holds a surface: its unknown neighbour lies behind
-/// that surface, inside the solid, and no view resolves it. (The sinkhole's ledges lie at the
-/// heights of cell centres: the cells they cut are hit from above and cleared by grazing rays,
-/// so they end free with an unknown cell below and free cells beside, which
-/// [`surface_bound`] does not catch; runs never finished for them.)
-///
-/// [`FrontierConfig::min_cluster_cells`]: frontier::FrontierConfig::min_cluster_cells
-fn mission_clusters<'a>(
-    frontiers: &'a Frontiers,
-    map: &'a VoxelMap,
-    hit_cells: &'a FxHashSet<frontier::Cell>,
-    region: (Point3<f64>, Point3<f64>),
-) -> impl Iterator<Item = &'a frontier::Cluster> {
-    let grid = *map.grid();
-    let h = 0.5 * grid.resolution();
-    let (lo, hi) = region;
-    let inner = move |p: Point3<f64>| (0..3).all(|k| p[k] > lo[k] + h && p[k] < hi[k] - h);
-    frontiers.clusters().filter(move |c| {
-        let live = c
-            .cells()
-            .iter()
-            .filter(|&&q| {
-                inner(grid.center(q)) && !surface_bound(map, q) && !hit_cells.contains(&q)
-            })
-            .count();
-        // A frontier onto a narrow passage has many cells beside its walls: a quarter of free
-        // ones keeps it.
-        4 * live > c.cells().len()
-    })
-}
-
-/// Whether a frontier cell lies on a surface: along an axis where it has an unknown face
-/// neighbour, one of its four face neighbours across that axis is occupied.
-///
-/// A cell that a surface cuts in two can be free (rays cross its open half) while its
-/// neighbour on the far side, inside the solid, is never observed: a frontier no view
-/// resolves. Such cells sit in a layer of occupied ones; a frontier onto open unknown space
-/// has free or unknown cells beside it. On the region's faces the same happens with the map's
-/// padding and the scene's outer walls, so cells there are not counted either.
-fn surface_bound(map: &VoxelMap, c: frontier::Cell) -> bool {
-    use frontier::CellState::{Occupied, Unknown};
-    let grid = map.grid();
-    let state = |d: [i32; 3]| grid.offset(c, d).map(|n| map.cell_state(n));
-    (0..3).any(|axis| {
-        let mut d = [0; 3];
-        d[axis] = 1;
-        let up = state(d);
-        d[axis] = -1;
-        let down = state(d);
-        if up != Some(Unknown) && down != Some(Unknown) {
-            return false;
-        }
-        // The four sideways neighbours.
-        (0..3).filter(|&k| k != axis).any(|k| {
-            let mut e = [0; 3];
-            e[k] = 1;
-            let a = state(e);
-            e[k] = -1;
-            a == Some(Occupied) || state(e) == Some(Occupied)
-        })
-    })
-}
-
 /// The explorer's state between frames.
 struct Explorer<'a> {
     config: &'a ExplorerConfig,
@@ -985,11 +920,9 @@ struct Explorer<'a> {
     last_targets: usize,
     /// The mission's region \[m\].
     region: (Point3<f64>, Point3<f64>),
-    /// The clusters [`mission_clusters`] keeps, by id, as of the last map update: the planner
-    /// and the scan targets share one evaluation per frame.
-    mission: Vec<frontier::ClusterId>,
-    /// Every map cell a return has ended in: cells that hold a surface.
-    hit_cells: FxHashSet<frontier::Cell>,
+    /// The clusters the mission asks for ([`crate::mission::mission_clusters`]), as of the
+    /// last map update: the planner and the scan targets share one evaluation per frame.
+    mission: MissionCache,
 }
 
 impl Explorer<'_> {
@@ -1049,6 +982,7 @@ impl Explorer<'_> {
         // and the tour is planned where the UAV can act next.
         let mut clusters: Vec<&frontier::Cluster> = self
             .mission
+            .ids()
             .iter()
             .filter_map(|id| self.frontiers.cluster(*id))
             .collect();
@@ -1438,9 +1372,11 @@ pub fn explore(
     let motor = MotorModel::new(config.motor);
     let mut encoder = Encoder::new(fc.encoder);
     let mut scan = Scan::new(config.controller, config)?;
+    let map = VoxelMap::new(bounds, config.map)?;
+    let mission_cache = MissionCache::new(&map);
     let mut ex = Explorer {
         config,
-        map: VoxelMap::new(bounds, config.map)?,
+        map,
         frontiers: Frontiers::new(config.frontier)?,
         graph: TopoGraph::new(),
         reference: Reference {
@@ -1459,8 +1395,7 @@ pub fn explore(
         headway: Headway::default(),
         last_targets: 0,
         region: (mission.min, mission.max),
-        mission: Vec::new(),
-        hit_cells: FxHashSet::default(),
+        mission: mission_cache,
     };
     let mut track = Tracking::at_rest(0.0, fc.tracking_lag);
     let actual =
@@ -1509,8 +1444,13 @@ pub fn explore(
     angles.push(AngleSample::new(0.0, encoder.read(latency)?.angle));
     let mut inside = false;
     let mut coverage = None;
-    // Coverage counted incrementally: the map never forgets a cell.
-    let mut counter: Option<crate::scene::CoverageCounter<'_>> = None;
+    // Coverage counted incrementally: the map never forgets a cell, and each frame's newly
+    // known map cells are the only ones whose explorable cells can change.
+    let mut counter: Option<crate::scene::CoverageCounter<'_>> = mission.explorable.map(|e| {
+        let mut c = e.coverage_counter();
+        c.update(|p| ex.map.state(p) != frontier::CellState::Unknown);
+        c
+    });
     // Frame counts are small; times are exact ratios so ticks and frame ends meet.
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let frames = (config.max_time * 10.0).ceil() as u64;
@@ -1609,21 +1549,35 @@ pub fn explore(
             estimate * Point3::from(chain.lidar_in_body(motor_state.theta)?.translation.vector);
         if ex.map.bounds().contains(&origin) {
             let update = ex.map.insert_frame(&origin, &world_points)?;
-            ex.frontiers.update(&ex.map, &update);
+            let delta = ex.frontiers.update(&ex.map, &update);
+            if let Some(counter) = counter.as_mut() {
+                let h = Vector3::repeat(0.5 * ex.map.grid().resolution());
+                let known = |p: &Point3<f64>| ex.map.state(p) != frontier::CellState::Unknown;
+                for ch in &update.changed {
+                    if ch.before == frontier::CellState::Unknown {
+                        let c = ex.map.grid().center(ch.cell);
+                        counter.reveal(&(c - h), &(c + h), known);
+                    }
+                }
+            }
             // The cells returns end in (the map counts no hit beyond its range).
             let range2 = config.map.max_range * config.map.max_range;
             let grid = *ex.map.grid();
-            ex.hit_cells.extend(
-                world_points[..returns]
-                    .iter()
-                    .filter(|p| (*p - origin).norm_squared() <= range2)
-                    .filter_map(|p| grid.cell_of(p)),
+            let hits = world_points[..returns]
+                .iter()
+                .filter(|p| (*p - origin).norm_squared() <= range2)
+                .filter_map(|p| grid.cell_of(p));
+            ex.mission.refresh(
+                &ex.frontiers,
+                &ex.map,
+                Some((&update, &delta)),
+                hits,
+                ex.region,
             );
+        } else {
+            ex.mission
+                .refresh(&ex.frontiers, &ex.map, None, core::iter::empty(), ex.region);
         }
-        ex.mission.clear();
-        ex.mission.extend(
-            mission_clusters(&ex.frontiers, &ex.map, &ex.hit_cells, ex.region).map(|c| c.id()),
-        );
         log.timings.mapping.push(ms(clock));
 
         // The tracking controller moves its target by plan − estimate (as in `flight`).
@@ -1703,6 +1657,7 @@ pub fn explore(
         scan_targets.clear();
         scan_targets.extend(
             ex.mission
+                .ids()
                 .iter()
                 .filter_map(|id| ex.frontiers.cluster(*id))
                 .map(|c| FrontierTarget {
@@ -1734,11 +1689,9 @@ pub fn explore(
         log.timings.scan.push(ms(clock));
 
         if (k + 1).is_multiple_of(config.coverage_frames as u64)
-            && let Some(e) = mission.explorable
+            && let Some(counter) = &counter
         {
-            let c = counter
-                .get_or_insert_with(|| e.coverage_counter())
-                .update(|p| ex.map.state(p) != frontier::CellState::Unknown);
+            let c = counter.share();
             log.coverage.push((t1, c));
             coverage = Some(c);
         }
@@ -1975,65 +1928,6 @@ mod tests {
         assert!(!log.occupied.is_empty());
         // The UAV hovered through the warm-up: no trajectory before 2 s.
         assert!(log.trajectory_starts.iter().all(|&t| t >= config.warmup));
-    }
-
-    /// A sheet of free cells onto open unknown space is a mission cluster until returns are
-    /// found to end in most of its cells: then its unknown side lies behind a surface.
-    #[test]
-    fn clusters_of_hit_cells_leave_the_mission() {
-        let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(8.0, 8.0, 4.0)).unwrap();
-        let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
-        // A fan of rays in the plane z = 2.1: free cells with unknown ones above and below.
-        let o = Point3::new(4.1, 4.1, 2.1);
-        let ends: Vec<Point3<f64>> = (0..360)
-            .map(|i| {
-                let a = f64::from(i).to_radians();
-                o + Vector3::new(a.cos(), a.sin(), 0.0) * 3.0
-            })
-            .collect();
-        map.insert_frame(&o, &ends).unwrap();
-        let mut frontiers = Frontiers::new(frontier::FrontierConfig::default()).unwrap();
-        frontiers.rebuild(&map);
-        let region = (Point3::new(0.0, 0.0, 0.0), Point3::new(8.0, 8.0, 4.0));
-        let mut hits = FxHashSet::default();
-        let kept = |hits: &FxHashSet<frontier::Cell>| {
-            mission_clusters(&frontiers, &map, hits, region).count()
-        };
-        let all = kept(&hits);
-        assert!(all > 0);
-        // A few stray returns change nothing.
-        let cells: Vec<frontier::Cell> = frontiers
-            .clusters()
-            .flat_map(|c| c.cells().iter().copied())
-            .collect();
-        hits.extend(cells.iter().step_by(10).copied());
-        assert_eq!(kept(&hits), all);
-        // Returns in every cell: no cluster is left.
-        hits.extend(cells.iter().copied());
-        assert_eq!(kept(&hits), 0);
-    }
-
-    #[test]
-    fn frontier_cells_beside_occupied_ones_are_surface_bound() {
-        let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(4.0, 4.0, 4.0)).unwrap();
-        let o = Point3::new(0.5, 2.1, 2.1);
-        let f = Point3::new(1.1, 2.1, 2.1);
-        // One ray along x: the cell of f is free, unknown above and below.
-        let ray = |end: Point3<f64>| {
-            let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
-            map.insert_frame(&o, &[end]).unwrap();
-            map
-        };
-        // It ends in the next cell: f is free with an occupied neighbour beside its unknown
-        // ones, as on a surface.
-        let on_surface = ray(Point3::new(1.3, 2.1, 2.1));
-        let c = on_surface.grid().cell_of(&f).unwrap();
-        assert!(Frontiers::is_frontier_in(&on_surface, c));
-        assert!(surface_bound(&on_surface, c));
-        // It goes on: f's neighbours are free or unknown, a frontier onto open space.
-        let open = ray(Point3::new(2.5, 2.1, 2.1));
-        assert!(Frontiers::is_frontier_in(&open, c));
-        assert!(!surface_bound(&open, c));
     }
 
     /// A fully known 10 × 6 × 3 m box with a wall across x = 5 leaving a gap at y > 4.

@@ -17,6 +17,7 @@ pub mod flight;
 pub mod icr2d;
 pub mod lidar;
 pub mod metrics;
+mod mission;
 pub mod odometry;
 pub mod plot;
 pub mod registration;

@@ -295,24 +295,92 @@ fn flood(dims: [usize; 3], solid: &[bool], start: [usize; 3]) -> (Vec<bool>, usi
 /// `frontier::VoxelMap`, whose log-odds are clamped off the unknown value): the cells found
 /// known are not tested again, so a run's coverage curve costs far less than a full count
 /// per point.
+///
+/// Two ways to learn: [`CoverageCounter::update`] tests every cell not yet known, and
+/// [`CoverageCounter::reveal`] only those whose centre lies in a box (the cells of a map cell
+/// that has just become known), so a map that reports its changes costs work in proportion
+/// to them.
 #[derive(Debug, Clone)]
 pub struct CoverageCounter<'a> {
     explorable: &'a Explorable,
-    /// Explorable cells not yet known.
-    pending: Vec<u32>,
+    /// One bit per cell of the grid: explorable and not yet known.
+    pending: Vec<u64>,
+    /// Set bits of `pending`.
+    left: usize,
 }
 
 impl CoverageCounter<'_> {
     /// The coverage now: [`Explorable::coverage`] of `known`, provided every cell an earlier
-    /// update found known is still known.
+    /// call found known is still known.
     pub fn update(&mut self, known: impl Fn(&Point3<f64>) -> bool) -> f64 {
+        let e = self.explorable;
+        for w in 0..self.pending.len() {
+            let mut bits = self.pending[w];
+            while bits != 0 {
+                let b = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if known(&e.centre(64 * w + b)) {
+                    self.pending[w] &= !(1u64 << b);
+                    self.left -= 1;
+                }
+            }
+        }
+        self.share()
+    }
+
+    /// Tests the cells not yet known whose centre lies in the box `[lo, hi]` (widened by a
+    /// cell on each side, so rounding at its faces loses none) and returns the coverage.
+    ///
+    /// When the map tells which of its cells became known, revealing each one's box after
+    /// every change keeps the count equal to [`CoverageCounter::update`]'s: a cell becomes
+    /// known exactly when the map cell holding its centre does.
+    pub fn reveal(
+        &mut self,
+        lo: &Point3<f64>,
+        hi: &Point3<f64>,
+        known: impl Fn(&Point3<f64>) -> bool,
+    ) -> f64 {
+        let e = self.explorable;
+        let mut range = [(0usize, 0usize); 3];
+        for k in 0..3 {
+            // Centres sit at origin + (i + ½) r.
+            let a = ((lo[k] - e.origin[k]) / e.resolution - 0.5).floor() - 1.0;
+            let b = ((hi[k] - e.origin[k]) / e.resolution - 0.5).ceil() + 1.0;
+            #[allow(clippy::cast_precision_loss)]
+            let top = e.dims[k] as f64 - 1.0;
+            if !(a <= top && b >= 0.0) {
+                // Outside the grid, or NaN.
+                return self.share();
+            }
+            // Clamped into [0, dims − 1], so the casts are exact.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let r = (a.max(0.0) as usize, b.min(top) as usize);
+            range[k] = r;
+        }
+        let [nx, ny, _] = e.dims;
+        for z in range[2].0..=range[2].1 {
+            for y in range[1].0..=range[1].1 {
+                for x in range[0].0..=range[0].1 {
+                    let i = x + nx * (y + ny * z);
+                    let (w, bit) = (i >> 6, 1u64 << (i & 63));
+                    if self.pending[w] & bit != 0 && known(&e.centre(i)) {
+                        self.pending[w] &= !bit;
+                        self.left -= 1;
+                    }
+                }
+            }
+        }
+        self.share()
+    }
+
+    /// The coverage as of the last call.
+    pub fn share(&self) -> f64 {
         let e = self.explorable;
         if e.count == 0 {
             return 1.0;
         }
-        self.pending.retain(|&i| !known(&e.centre(i as usize)));
         #[allow(clippy::cast_precision_loss)]
-        let share = (e.count - self.pending.len()) as f64 / e.count as f64;
+        let share = (e.count - self.left) as f64 / e.count as f64;
         share
     }
 }
@@ -423,14 +491,14 @@ impl Explorable {
     /// A counter of [`Explorable::coverage`] for a map that only learns: each update tests
     /// only the cells not yet known.
     pub fn coverage_counter(&self) -> CoverageCounter<'_> {
+        let mut pending = vec![0u64; self.reached.len().div_ceil(64)];
+        for (i, _) in self.reached.iter().enumerate().filter(|(_, r)| **r) {
+            pending[i >> 6] |= 1u64 << (i & 63);
+        }
         CoverageCounter {
             explorable: self,
-            // Cell indices of a scene's grid fit u32 (4.3 billion cells).
-            #[allow(clippy::cast_possible_truncation)]
-            pending: (0..self.reached.len())
-                .filter(|&i| self.reached[i])
-                .map(|i| i as u32)
-                .collect(),
+            pending,
+            left: self.count,
         }
     }
 
@@ -481,6 +549,46 @@ mod tests {
                     (hash(p, 99) >> 11) as f64 / (1u64 << 53) as f64 <= level
                 };
                 proptest::prop_assert_eq!(counter.update(known), e.coverage(known));
+            }
+        }
+
+        /// Revealing the box of each map cell as it becomes known counts what a full count
+        /// does, for a map grid of another resolution and origin than the scene's.
+        #[test]
+        fn revealing_changed_map_cells_equals_a_full_count(
+            solid_seed in 0u64..1000,
+            res in 0.1f64..0.5,
+            off in proptest::array::uniform3(-0.3f64..0.3),
+            steps in proptest::collection::vec(proptest::collection::vec(0u32..4000, 0..60), 1..6),
+        ) {
+            let e = Explorable::from_fn(
+                Point3::origin(),
+                Point3::new(3.0, 2.0, 1.0),
+                &Point3::new(0.1, 0.1, 0.1),
+                0.2,
+                |p| p.x > 0.2 && (p.x * 17.0 + p.y * 5.0 + p.z * 3.0 + solid_seed as f64) as i64 % 5 == 0,
+            );
+            let origin = Point3::new(off[0], off[1], off[2]) - Vector3::repeat(0.5);
+            let cell_of = |p: &Point3<f64>| -> [i64; 3] {
+                let g = (p - origin) / res;
+                [g.x.floor() as i64, g.y.floor() as i64, g.z.floor() as i64]
+            };
+            let mut known_cells = std::collections::BTreeSet::new();
+            let mut counter = e.coverage_counter();
+            for step in steps {
+                for code in step {
+                    // A map cell over the scene's box (and a little beyond).
+                    let c = [i64::from(code % 20), i64::from(code / 20 % 14), i64::from(code / 280 % 9)];
+                    if !known_cells.insert(c) {
+                        continue;
+                    }
+                    let known = |p: &Point3<f64>| known_cells.contains(&cell_of(p));
+                    let lo = origin + Vector3::new(c[0] as f64, c[1] as f64, c[2] as f64) * res;
+                    let hi = lo + Vector3::repeat(res);
+                    counter.reveal(&lo, &hi, known);
+                }
+                let known = |p: &Point3<f64>| known_cells.contains(&cell_of(p));
+                proptest::prop_assert_eq!(counter.share(), e.coverage(known));
             }
         }
     }
