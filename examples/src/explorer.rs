@@ -1620,13 +1620,8 @@ pub fn explore(
         if config.controller.spins() && k.is_multiple_of(config.fisher_frames as u64) {
             let clock = Instant::now();
             let here = Point3::from(estimate.translation.vector);
-            let near: Vec<Point3<f64>> = odo
-                .map_points_within(&here, config.fisher_radius)
-                .copied()
-                .collect();
             // An even subsample keeps the table's cost bounded in large open scenes.
-            let every = near.len().div_ceil(config.fisher_points.max(1)).max(1);
-            let cloud: Vec<Point3<f64>> = near.iter().step_by(every).copied().collect();
+            let cloud = odo.map_sample_within(&here, config.fisher_radius, config.fisher_points);
             match &mut scan {
                 Scan::Icr(c) => c.set_cloud(&cloud),
                 Scan::Mpc(_) => {

@@ -211,6 +211,17 @@ impl Odometry {
         self.map.points_within(centre, radius)
     }
 
+    /// Every ⌈n / `max`⌉-th of the n local-map points within `radius` of `centre` (see
+    /// [`VoxelCloud::sample_within`]): an even subsample of at most `max` points.
+    pub fn map_sample_within(
+        &self,
+        centre: &Point3<f64>,
+        radius: f64,
+        max: usize,
+    ) -> Vec<Point3<f64>> {
+        self.map.sample_within(centre, radius, max)
+    }
+
     /// Propagates the state and its covariance to `t` with the last IMU sample held constant.
     fn propagate_to(&mut self, t: f64) {
         let dt = t - self.state.time;

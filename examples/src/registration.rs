@@ -324,6 +324,69 @@ impl VoxelCloud {
         })
     }
 
+    /// Every ⌈n / `max`⌉-th of the n points within `radius` of `centre`, from the first: the
+    /// same points, in the same order, as collecting [`VoxelCloud::points_within`] and
+    /// stepping through it, without listing the n points (whole blocks inside the sphere are
+    /// counted and indexed by their occupancy bits). At most `max` points (`max` = 0 counts
+    /// as 1).
+    pub fn sample_within(&self, centre: &Point3<f64>, radius: f64, max: usize) -> Vec<Point3<f64>> {
+        let r2 = radius * radius;
+        let (inside, outside) = (r2 * (1.0 - 1e-9), r2 * (1.0 + 1e-9));
+        // Per block as in `points_within`: skipped, taken whole, or tested point by point.
+        let class = |key: &[i64; 3]| {
+            let (near, far) = Self::block_reach(self.size, key, centre);
+            if near > outside {
+                None
+            } else {
+                Some(far >= inside)
+            }
+        };
+        let within = |b: &VoxelBlock, s: usize| (b.points[s] - centre).norm_squared() <= r2;
+        let mut n = 0usize;
+        for (key, b) in &self.blocks {
+            match class(key) {
+                None => {}
+                Some(false) => n += b.used.count_ones() as usize,
+                Some(true) => n += set_bits(b.used).filter(|&s| within(b, s)).count(),
+            }
+        }
+        let every = n.div_ceil(max.max(1)).max(1);
+        let mut out = Vec::with_capacity(n.div_ceil(every));
+        // `index` counts the points within so far; `next` is the index of the next one taken.
+        let (mut index, mut next) = (0usize, 0usize);
+        for (key, b) in &self.blocks {
+            if next >= n {
+                break;
+            }
+            match class(key) {
+                None => {}
+                Some(false) => {
+                    let m = b.used.count_ones() as usize;
+                    while next < index + m {
+                        // The (next − index)-th set bit.
+                        let mut bits = b.used;
+                        for _ in 0..next - index {
+                            bits &= bits - 1;
+                        }
+                        out.push(b.points[bits.trailing_zeros() as usize]);
+                        next += every;
+                    }
+                    index += m;
+                }
+                Some(true) => {
+                    for s in set_bits(b.used).filter(|&s| within(b, s)) {
+                        if index == next {
+                            out.push(b.points[s]);
+                            next += every;
+                        }
+                        index += 1;
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Number of points.
     pub fn len(&self) -> usize {
         self.len
@@ -687,7 +750,13 @@ mod tests {
                 .filter(|p| (*p - centre).norm_squared() <= radius * radius)
                 .copied()
                 .collect();
-            proptest::prop_assert_eq!(near, filtered);
+            proptest::prop_assert_eq!(&near, &filtered);
+            // `sample_within` steps through the same list.
+            for max in [0, 1, 2, 7, 50, 1000] {
+                let every = near.len().div_ceil(max.max(1)).max(1);
+                let stepped: Vec<Point3<f64>> = near.iter().step_by(every).copied().collect();
+                proptest::prop_assert_eq!(all.sample_within(&centre, radius, max), stepped);
+            }
             all.retain_within(&centre, radius);
             let mut want: Vec<[f64; 3]> = kept
                 .iter()
