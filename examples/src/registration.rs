@@ -342,46 +342,50 @@ impl VoxelCloud {
             }
         };
         let within = |b: &VoxelBlock, s: usize| (b.points[s] - centre).norm_squared() <= r2;
+        // The blocks that hold points within, in map order, with whether to test each point.
+        let mut blocks: Vec<(&VoxelBlock, bool)> = Vec::new();
         let mut n = 0usize;
         for (key, b) in &self.blocks {
             match class(key) {
                 None => {}
-                Some(false) => n += b.used.count_ones() as usize,
-                Some(true) => n += set_bits(b.used).filter(|&s| within(b, s)).count(),
+                Some(false) => {
+                    n += b.used.count_ones() as usize;
+                    blocks.push((b, false));
+                }
+                Some(true) => {
+                    let m = set_bits(b.used).filter(|&s| within(b, s)).count();
+                    if m > 0 {
+                        n += m;
+                        blocks.push((b, true));
+                    }
+                }
             }
         }
         let every = n.div_ceil(max.max(1)).max(1);
         let mut out = Vec::with_capacity(n.div_ceil(every));
         // `index` counts the points within so far; `next` is the index of the next one taken.
         let (mut index, mut next) = (0usize, 0usize);
-        for (key, b) in &self.blocks {
-            if next >= n {
-                break;
-            }
-            match class(key) {
-                None => {}
-                Some(false) => {
-                    let m = b.used.count_ones() as usize;
-                    while next < index + m {
-                        // The (next − index)-th set bit.
-                        let mut bits = b.used;
-                        for _ in 0..next - index {
-                            bits &= bits - 1;
-                        }
-                        out.push(b.points[bits.trailing_zeros() as usize]);
+        for (b, test) in blocks {
+            if test {
+                for s in set_bits(b.used).filter(|&s| within(b, s)) {
+                    if index == next {
+                        out.push(b.points[s]);
                         next += every;
                     }
-                    index += m;
+                    index += 1;
                 }
-                Some(true) => {
-                    for s in set_bits(b.used).filter(|&s| within(b, s)) {
-                        if index == next {
-                            out.push(b.points[s]);
-                            next += every;
-                        }
-                        index += 1;
+            } else {
+                let m = b.used.count_ones() as usize;
+                while next < index + m {
+                    // The (next − index)-th set bit.
+                    let mut bits = b.used;
+                    for _ in 0..next - index {
+                        bits &= bits - 1;
                     }
+                    out.push(b.points[bits.trailing_zeros() as usize]);
+                    next += every;
                 }
+                index += m;
             }
         }
         out
