@@ -468,11 +468,21 @@ impl NonRepetitivePattern {
     }
 
     fn beam(&self, frame: u64, k: usize) -> Beam {
-        let n = frame as f64 * self.points_per_frame as f64 + k as f64;
         let lines = self.lines as f64;
-        let line = (n % lines) / lines;
+        // The beam's index n over all frames, its line n mod L and ⌊n / L⌋: in integers
+        // while n < 2^53, where they equal the float expressions below exactly (and cost no
+        // fmod call).
+        let exact = u128::from(frame) * (self.points_per_frame as u128) + k as u128;
+        let (rem, quot) = if exact < 1 << 53 {
+            let l = self.lines as u128;
+            ((exact % l) as f64, (exact / l) as f64)
+        } else {
+            let n = frame as f64 * self.points_per_frame as f64 + k as f64;
+            (n % lines, (n / lines).floor())
+        };
+        let line = rem / lines;
         // Frames measured in units of this line's own samples.
-        let f = (n / lines).floor() * lines / self.points_per_frame as f64;
+        let f = quot * lines / self.points_per_frame as f64;
         let az = TAU * (self.azimuth_turns_per_frame * f + line).fract();
         let phase = (self.elevation_cycles_per_frame * f + 0.5 * line).fract();
         let tri = 1.0 - (2.0 * phase - 1.0).abs();
@@ -840,6 +850,27 @@ mod tests {
         assert!(!fov.contains(&Vector3::new(-1.0, 0.5, 0.0)));
         assert!(!fov.contains(&Vector3::zeros()));
         assert!(!fov.contains(&Vector3::new(f64::NAN, 0.0, 0.0)));
+    }
+
+    proptest! {
+        /// The beam's line and sample count in integers equal the float formula they replace,
+        /// bit for bit, for any frame and line count.
+        #[test]
+        fn integer_beam_indices_equal_the_float_formula(
+            frame in prop_oneof![0u64..100_000, (1u64 << 40)..(1u64 << 40) + 1000],
+            k in 0usize..20_000,
+            lines in 1usize..7,
+        ) {
+            let p = NonRepetitivePattern { lines, ..NonRepetitivePattern::mid360() };
+            let n = frame as f64 * p.points_per_frame as f64 + k as f64;
+            let l = lines as f64;
+            let f = (n / l).floor() * l / p.points_per_frame as f64;
+            let az = TAU * (p.azimuth_turns_per_frame * f + (n % l) / l).fract();
+            let phase = (p.elevation_cycles_per_frame * f + 0.5 * ((n % l) / l)).fract();
+            let el = p.elevation_min + (p.elevation_max - p.elevation_min) * (1.0 - (2.0 * phase - 1.0).abs());
+            let b = p.beam(frame, k);
+            prop_assert_eq!(b.direction.into_inner(), direction(az, el).into_inner());
+        }
     }
 
     proptest! {
