@@ -178,7 +178,21 @@ struct VoxelBlock {
 pub(crate) fn voxel_key(p: &Point3<f64>, size: f64) -> [i64; 3] {
     // Map coordinates are metres, far inside i64 (and the cast saturates otherwise).
     #[allow(clippy::cast_possible_truncation)]
-    p.coords.map(|c| (c / size).floor() as i64).into()
+    p.coords.map(|c| floor_i64(c / size)).into()
+}
+
+/// `x.floor() as i64`, bit for bit, without a libm call on CPUs without a rounding
+/// instruction in the baseline target (x86-64 before SSE4.1): the truncating cast, one
+/// step down where it rounded up. The casts saturate as `as` does, NaN gives 0.
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    // Saturating casts, as `floor() as i64` does.
+    #[allow(clippy::cast_possible_truncation, clippy::cast_precision_loss)]
+    let (i, up) = {
+        let i = x as i64;
+        (i, i as f64 > x)
+    };
+    if up { i.saturating_sub(1) } else { i }
 }
 
 /// The positions of the set bits of `bits`, lowest first.
@@ -682,6 +696,45 @@ mod tests {
             );
             assert!(r.matched > 1000);
             assert!(r.information[0] > 0.0);
+        }
+    }
+
+    proptest::proptest! {
+        /// `floor_i64` is `floor() as i64` for any float, the specials and the cast's ends
+        /// included.
+        #[test]
+        fn floor_i64_is_floor_then_cast(x in proptest::num::f64::ANY) {
+            proptest::prop_assert_eq!(floor_i64(x), x.floor() as i64);
+        }
+    }
+
+    #[test]
+    fn floor_i64_at_the_edges() {
+        for x in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            -1.0,
+            1.0,
+            -1e-300,
+            2.5e15,
+            -2.5e15,
+            9.2e18,
+            -9.2e18,
+            i64::MAX as f64,
+            i64::MIN as f64,
+            (i64::MAX as f64).next_down(),
+            (i64::MIN as f64).next_down(),
+            1e19,
+            -1e19,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            f64::MAX,
+            f64::MIN,
+        ] {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
         }
     }
 
