@@ -920,8 +920,8 @@ struct Explorer<'a> {
     last_targets: usize,
     /// The mission's region \[m\].
     region: (Point3<f64>, Point3<f64>),
-    /// The clusters the mission asks for ([`crate::mission::mission_clusters`]), as of the
-    /// last map update: the planner and the scan targets share one evaluation per frame.
+    /// The clusters the mission asks for, as of the last map update: the planner and the
+    /// scan targets share one evaluation per frame.
     mission: MissionCache,
 }
 

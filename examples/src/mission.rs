@@ -4,16 +4,8 @@ use frontier::{Cluster, ClusterId, FrameUpdate, FrontierDelta, Frontiers, VoxelM
 use nalgebra::Point3;
 use rustc_hash::{FxHashMap, FxHashSet};
 
-/// The frontier clusters the mission asks for: at least [`FrontierConfig::min_cluster_cells`]
-/// cells, more than a quarter of them inside the region, not [`surface_bound`] and never hit.
-///
-/// A frontier cell a return has ended in holds a surface: its unknown neighbour lies behind
-/// that surface, inside the solid, and no view resolves it. (The sinkhole's ledges lie at the
-/// heights of cell centres: the cells they cut are hit from above and cleared by grazing rays,
-/// so they end free with an unknown cell below and free cells beside, which
-/// [`surface_bound`] does not catch; runs never finished for them.)
-///
-/// [`FrontierConfig::min_cluster_cells`]: frontier::FrontierConfig::min_cluster_cells
+/// The frontier clusters the mission asks for, judged from scratch: the reference the
+/// cache's tests compare [`MissionCache`] with.
 #[cfg(test)]
 pub(crate) fn mission_clusters<'a>(
     frontiers: &'a Frontiers,
@@ -26,7 +18,17 @@ pub(crate) fn mission_clusters<'a>(
         .filter(move |c| keeps(c, map, hits, region))
 }
 
-/// Whether [`mission_clusters`] keeps `cluster`.
+/// Whether the mission asks for `cluster`: at least [`FrontierConfig::min_cluster_cells`]
+/// cells (as [`Frontiers::clusters`] lists), more than a quarter of them inside the region,
+/// not [`surface_bound`] and never hit.
+///
+/// A frontier cell a return has ended in holds a surface: its unknown neighbour lies behind
+/// that surface, inside the solid, and no view resolves it. (The sinkhole's ledges lie at the
+/// heights of cell centres: the cells they cut are hit from above and cleared by grazing rays,
+/// so they end free with an unknown cell below and free cells beside, which
+/// [`surface_bound`] does not catch; runs never finished for them.)
+///
+/// [`FrontierConfig::min_cluster_cells`]: frontier::FrontierConfig::min_cluster_cells
 fn keeps(
     cluster: &Cluster,
     map: &VoxelMap,
@@ -132,7 +134,7 @@ impl HitCells {
     }
 }
 
-/// The mission clusters ([`mission_clusters`]) kept frame by frame: a cluster's verdict
+/// The clusters the mission asks for (see [`keeps`]) kept frame by frame: a cluster's verdict
 /// depends only on its cells (fixed for its id), their face neighbours' states and which of
 /// them were hit, so only the clusters a frame touches are judged again.
 #[derive(Debug, Clone)]
