@@ -267,9 +267,12 @@ impl VoxelCloud {
         added
     }
 
-    /// Squared distances from `centre` to the nearest and the farthest point of block `key`'s
-    /// box, for voxels of edge `size`.
-    fn block_reach(size: f64, key: &[i64; 3], centre: &Point3<f64>) -> (f64, f64) {
+    /// How block `key`'s box (voxels of edge `size`) lies against the sphere of squared
+    /// radius `r2` about `centre`: `None` when wholly outside, `Some(false)` when wholly
+    /// inside, `Some(true)` when its points must be tested one by one. The relative margins
+    /// absorb the rounding of a point's voxel, so whole blocks are decided as the per-point
+    /// test would decide each of their points.
+    fn block_side(size: f64, key: &[i64; 3], centre: &Point3<f64>, r2: f64) -> Option<bool> {
         let edge = 4.0 * size;
         let (mut near, mut far) = (0.0, 0.0);
         for a in 0..3 {
@@ -282,24 +285,23 @@ impl VoxelCloud {
             near += gap * gap;
             far += reach * reach;
         }
-        (near, far)
+        if near > r2 * (1.0 + 1e-9) {
+            None
+        } else {
+            Some(far >= r2 * (1.0 - 1e-9))
+        }
     }
 
     /// Drops the points farther than `radius` from `centre`.
     pub fn retain_within(&mut self, centre: &Point3<f64>, radius: f64) {
         let r2 = radius * radius;
-        // Whole blocks well inside or well outside the sphere are decided by their box; the
-        // relative margins absorb the rounding of a point's voxel, so the points kept are
-        // those the per-point test keeps.
-        let (inside, outside) = (r2 * (1.0 - 1e-9), r2 * (1.0 + 1e-9));
         let mut len = 0;
         let size = self.size;
         self.blocks.retain(|key, block| {
-            let (near, far) = Self::block_reach(size, key, centre);
-            if near > outside {
+            let Some(test) = Self::block_side(size, key, centre, r2) else {
                 return false;
-            }
-            if far >= inside {
+            };
+            if test {
                 let mut bits = block.used;
                 while bits != 0 {
                     let slot = bits.trailing_zeros() as usize;
@@ -324,13 +326,10 @@ impl VoxelCloud {
         radius: f64,
     ) -> impl Iterator<Item = &'a Point3<f64>> + 'a {
         let r2 = radius * radius;
-        let (inside, outside) = (r2 * (1.0 - 1e-9), r2 * (1.0 + 1e-9));
         self.blocks.iter().flat_map(move |(key, b)| {
-            let (near, far) = Self::block_reach(self.size, key, centre);
-            let (used, test) = if near > outside {
-                (0, false)
-            } else {
-                (b.used, far >= inside)
+            let (used, test) = match Self::block_side(self.size, key, centre, r2) {
+                None => (0, false),
+                Some(test) => (b.used, test),
             };
             set_bits(used)
                 .map(move |s| &b.points[s])
@@ -345,22 +344,12 @@ impl VoxelCloud {
     /// as 1).
     pub fn sample_within(&self, centre: &Point3<f64>, radius: f64, max: usize) -> Vec<Point3<f64>> {
         let r2 = radius * radius;
-        let (inside, outside) = (r2 * (1.0 - 1e-9), r2 * (1.0 + 1e-9));
-        // Per block as in `points_within`: skipped, taken whole, or tested point by point.
-        let class = |key: &[i64; 3]| {
-            let (near, far) = Self::block_reach(self.size, key, centre);
-            if near > outside {
-                None
-            } else {
-                Some(far >= inside)
-            }
-        };
         let within = |b: &VoxelBlock, s: usize| (b.points[s] - centre).norm_squared() <= r2;
         // The blocks that hold points within, in map order, with whether to test each point.
         let mut blocks: Vec<(&VoxelBlock, bool)> = Vec::new();
         let mut n = 0usize;
         for (key, b) in &self.blocks {
-            match class(key) {
+            match Self::block_side(self.size, key, centre, r2) {
                 None => {}
                 Some(false) => {
                     n += b.used.count_ones() as usize;

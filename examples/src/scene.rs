@@ -320,8 +320,7 @@ impl CoverageCounter<'_> {
                 let b = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 if known(&e.centre(64 * w + b)) {
-                    self.pending[w] &= !(1u64 << b);
-                    self.left -= 1;
+                    self.take(64 * w + b);
                 }
             }
         }
@@ -362,15 +361,19 @@ impl CoverageCounter<'_> {
             for y in range[1].0..=range[1].1 {
                 for x in range[0].0..=range[0].1 {
                     let i = x + nx * (y + ny * z);
-                    let (w, bit) = (i >> 6, 1u64 << (i & 63));
-                    if self.pending[w] & bit != 0 && known(&e.centre(i)) {
-                        self.pending[w] &= !bit;
-                        self.left -= 1;
+                    if self.pending[i >> 6] & (1u64 << (i & 63)) != 0 && known(&e.centre(i)) {
+                        self.take(i);
                     }
                 }
             }
         }
         self.share()
+    }
+
+    /// Marks pending cell `i` known.
+    fn take(&mut self, i: usize) {
+        self.pending[i >> 6] &= !(1u64 << (i & 63));
+        self.left -= 1;
     }
 
     /// The coverage as of the last call.
