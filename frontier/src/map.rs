@@ -27,6 +27,8 @@ const SCALE: f64 = 32.0;
 const MAX_Q: f64 = 127.0;
 /// The stored value of a cell never observed.
 const UNKNOWN: i8 = i8::MIN;
+/// The values of a block never allocated: every cell unknown.
+static ALL_UNKNOWN: [i8; BLOCK_CELLS] = [UNKNOWN; BLOCK_CELLS];
 
 /// The occupancy state of a cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -684,32 +686,21 @@ impl VoxelMap {
         unknown_occludes: bool,
     ) -> bool {
         let to = self.grid.center(target);
-        let mut w = BlockWalk::new(self, from, &to);
-        let block = |dir: usize| match self.directory[dir] {
-            NO_BLOCK => None,
-            b => Some(b as usize),
+        let walk = Walk::new(&self.grid, from, &to);
+        let [bx, by, _] = self.block_dims.map(|v| v as usize);
+        let entry = self.directory_index(walk.cell());
+        let block = |entry: usize| match self.directory[entry] {
+            NO_BLOCK => &ALL_UNKNOWN,
+            b => &self.cells[b as usize],
         };
-        let mut base = block(w.dir);
-        // The first cell (the viewpoint's) is not tested; the last one is the target.
-        while let Some(entered) = w.advance() {
-            if entered {
-                base = block(w.dir);
-            }
-            let c = w.walk.cell();
-            if c == target {
-                break;
-            }
-            let v = base.map_or(UNKNOWN, |b| self.cells[b][Self::index_in_block(c)]);
-            let blocked = if v == UNKNOWN {
+        // The first cell (the viewpoint's) and the last (the target) are not tested.
+        walk.any_inner(entry, [1, bx, bx * by], block, |v| {
+            if v == UNKNOWN {
                 unknown_occludes
             } else {
                 v >= 0
-            };
-            if blocked {
-                return true;
             }
-        }
-        false
+        })
     }
 
     /// Distance from `p` to the nearest occupied cell (to the closest point of its cube) \[m\],
@@ -812,51 +803,6 @@ impl VoxelMap {
                 f(c, Self::state_of(v));
             }
         }
-    }
-}
-
-/// A DDA walk that also follows the directory entry of the block it is in, so the cells of a
-/// ray are found without a directory lookup per cell.
-struct BlockWalk {
-    walk: Walk,
-    dir: usize,
-    stride: [usize; 3],
-    /// The in-block coordinate at which a step along each axis has entered a new block.
-    wrap: [u32; 3],
-}
-
-impl BlockWalk {
-    #[inline]
-    fn new(map: &VoxelMap, a: &Point3<f64>, b: &Point3<f64>) -> Self {
-        let walk = Walk::new(&map.grid, a, b);
-        let [bx, by, _] = map.block_dims.map(|v| v as usize);
-        Self {
-            dir: map.directory_index(walk.cell()),
-            stride: [1, bx, bx * by],
-            wrap: walk.step.map(|s| if s > 0 { 0 } else { BLOCK_MASK }),
-            walk,
-        }
-    }
-
-    /// Steps into the next cell: `Some(true)` if it lies in another block than the last,
-    /// `None` at the end.
-    #[inline(always)]
-    fn advance(&mut self) -> Option<bool> {
-        let k = self.walk.advance()?;
-        let coord = match k {
-            0 => self.walk.x,
-            1 => self.walk.y,
-            _ => self.walk.z,
-        };
-        let entered = coord & BLOCK_MASK == self.wrap[k];
-        if entered {
-            self.dir = if self.walk.step[k] > 0 {
-                self.dir + self.stride[k]
-            } else {
-                self.dir - self.stride[k]
-            };
-        }
-        Some(entered)
     }
 }
 
@@ -1325,6 +1271,46 @@ mod tests {
             for d in [0.5 * cap, cap, truth * (1.0 - 1e-9), truth * (1.0 + 1e-9)] {
                 if d.is_finite() && (d - truth).abs() > 1e-12 {
                     proptest::prop_assert_eq!(m.is_clear(&p, d), truth >= d);
+                }
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// `occluded` tests exactly the cells a walk visits strictly between the viewpoint's
+        /// cell and the target, across allocated, unallocated, free and occupied blocks.
+        #[test]
+        fn occlusion_equals_a_cell_by_cell_walk(
+            origins in proptest::collection::vec((0.5f64..7.5, 0.5f64..5.5, 0.2f64..2.8), 1..3),
+            hits in proptest::collection::vec((0.0f64..8.0, 0.0f64..6.0, 0.0f64..3.0), 0..60),
+            from in (0.0f64..8.0, 0.0f64..6.0, 0.0f64..3.0),
+            to in proptest::collection::vec((0.0f64..8.0, 0.0f64..6.0, 0.0f64..3.0), 1..20),
+        ) {
+            let mut m = map();
+            let pts: Vec<_> = hits.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect();
+            for &(x, y, z) in &origins {
+                m.insert_frame(&Point3::new(x, y, z), &pts).unwrap();
+            }
+            let from = Point3::new(from.0, from.1, from.2);
+            // Occupied targets too: the target itself is never tested.
+            for &(x, y, z) in to.iter().chain(&hits) {
+                let target = m.grid().cell_of(&Point3::new(x, y, z)).unwrap();
+                let first = m.grid().cell_of(&from).unwrap();
+                for unknown in [false, true] {
+                    let mut blocked = false;
+                    traverse(&m.grid, &from, &m.grid.center(target), |c| {
+                        if c != first && c != target {
+                            blocked |= match m.cell_state(c) {
+                                CellState::Occupied => true,
+                                CellState::Unknown => unknown,
+                                CellState::Free => false,
+                            };
+                        }
+                        true
+                    });
+                    proptest::prop_assert_eq!(m.occluded(&from, target, unknown), blocked);
                 }
             }
         }

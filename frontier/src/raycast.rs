@@ -4,7 +4,7 @@
 use nalgebra::Point3;
 
 use crate::grid::{Cell, Grid};
-use crate::map::{BLOCK_BITS, BLOCK_MASK};
+use crate::map::{BLOCK_BITS, BLOCK_CELLS, BLOCK_MASK};
 
 /// A DDA walk over the cells of a segment, one face-adjacent step at a time.
 ///
@@ -208,6 +208,92 @@ impl Walk {
             pos += d;
             mark(pos);
         }
+    }
+}
+
+impl Walk {
+    /// Whether `blocks` a cell strictly between the first and the last cell of the walk, the
+    /// cells' values read from 8 × 8 × 8 blocks: `block(entry)` gives the values of the block
+    /// at entry `entry` of a block directory (x fastest, `stride` entries per step along each
+    /// axis) in which the walk's first cell lies at entry `entry`.
+    ///
+    /// The cells are those [`Walk::advance`] visits, the last one excepted; the block entry and
+    /// the index inside the block are carried from cell to cell instead of being recomputed.
+    #[inline]
+    pub(crate) fn any_inner<'a>(
+        self,
+        entry: usize,
+        stride: [usize; 3],
+        block: impl Fn(usize) -> &'a [i8; BLOCK_CELLS],
+        blocks: impl Fn(i8) -> bool,
+    ) -> bool {
+        if self.remaining <= 1 {
+            return false;
+        }
+        let edge = 1usize << BLOCK_BITS;
+        let unit = [1, edge, edge * edge];
+        let last = BLOCK_MASK as usize;
+        // Steps inside a block and into the next one, as wrapping offsets of the index and
+        // of the directory entry.
+        let (mut inc, mut winc, mut dinc) = ([0usize; 3], [0usize; 3], [0usize; 3]);
+        for k in 0..3 {
+            if self.step[k] > 0 {
+                inc[k] = unit[k];
+                winc[k] = (last * unit[k]).wrapping_neg();
+                dinc[k] = stride[k];
+            } else {
+                inc[k] = unit[k].wrapping_neg();
+                winc[k] = last * unit[k];
+                dinc[k] = stride[k].wrapping_neg();
+            }
+        }
+        let wrap = self.step.map(|s| if s > 0 { 0u32 } else { BLOCK_MASK });
+        let [sx, sy, sz] = self.step.map(i32::cast_unsigned);
+        let (mut x, mut y, mut z) = (self.x, self.y, self.z);
+        let (mut tx, mut ty, mut tz) = (self.tx, self.ty, self.tz);
+        let mut index = ((x & BLOCK_MASK)
+            | ((y & BLOCK_MASK) << BLOCK_BITS)
+            | ((z & BLOCK_MASK) << (2 * BLOCK_BITS))) as usize;
+        let mut entry = entry;
+        let mut values = block(entry);
+        for _ in 1..self.remaining {
+            let (coord, k) = if tx <= ty && tx <= tz {
+                x = x.wrapping_add(sx);
+                tx = if x == self.end[0] {
+                    f64::INFINITY
+                } else {
+                    tx + self.dt[0]
+                };
+                (x, 0)
+            } else if ty <= tz {
+                y = y.wrapping_add(sy);
+                ty = if y == self.end[1] {
+                    f64::INFINITY
+                } else {
+                    ty + self.dt[1]
+                };
+                (y, 1)
+            } else {
+                z = z.wrapping_add(sz);
+                tz = if z == self.end[2] {
+                    f64::INFINITY
+                } else {
+                    tz + self.dt[2]
+                };
+                (z, 2)
+            };
+            if coord & BLOCK_MASK == wrap[k] {
+                index = index.wrapping_add(winc[k]);
+                entry = entry.wrapping_add(dinc[k]);
+                values = block(entry);
+            } else {
+                index = index.wrapping_add(inc[k]);
+            }
+            if blocks(values[index & (BLOCK_CELLS - 1)]) {
+                return true;
+            }
+        }
+        false
     }
 }
 

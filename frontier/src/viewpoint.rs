@@ -1,6 +1,7 @@
 //! Viewpoint sampling, visibility ratios (4)–(5) and dynamic clusters (6).
 
 use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use crate::frontier::{Cluster, ClusterId, Frontiers};
@@ -278,6 +279,22 @@ fn subsample(cells: &[Cell], k: usize) -> Vec<Cell> {
     (0..k).map(|j| cells[j * cells.len() / k]).collect()
 }
 
+/// Which of the first 64 samples of a cluster were evaluated from a candidate, and which of
+/// those are seen: the r0 test and the choice of representatives ask for the same cells.
+#[derive(Debug, Clone, Copy, Default)]
+struct Bits {
+    asked: u64,
+    seen: u64,
+}
+
+/// What is known of a (cluster, candidate) pair.
+#[derive(Debug, Clone, Copy, Default)]
+struct Memo {
+    bits: Bits,
+    /// Whether r(v) ≥ r0, once judged.
+    passes: Option<bool>,
+}
+
 /// Pooled candidates and lazily evaluated visibility.
 struct Pool<'a, F> {
     map: &'a VoxelMap,
@@ -289,25 +306,44 @@ struct Pool<'a, F> {
     points: Vec<Point3<f64>>,
     fov: &'a F,
     config: &'a ViewpointConfig,
-    /// Whether cluster `i` passes r0 from candidate `v`.
-    passes: FxHashMap<(u32, u32), bool>,
-    /// Visibility of the first 64 samples of cluster `i` from candidate `v`: which were
-    /// evaluated, and which of those are seen.
-    sample_bits: FxHashMap<(u32, u32), (u64, u64)>,
+    memo: FxHashMap<(u32, u32), Memo>,
+}
+
+/// The key of a (cluster, candidate) pair; both counts fit `u32`.
+#[allow(clippy::cast_possible_truncation)]
+fn key(i: usize, v: usize) -> (u32, u32) {
+    (i as u32, v as u32)
 }
 
 impl<F: FieldOfView> Pool<'_, F> {
+    /// Judges r(v) ≥ r0 for every (cluster, candidate) pair of `pairs`, in parallel (pairs
+    /// are independent), remembers the outcomes, and returns the verdicts in order.
+    fn judge_all(&mut self, pairs: &[(usize, usize)]) -> Vec<bool>
+    where
+        F: Sync,
+    {
+        let this = &*self;
+        let memos: Vec<Memo> = pairs
+            .par_iter()
+            .map(|&(i, v)| {
+                let mut bits = Bits::default();
+                let ok = this.judge(i, v, &mut bits);
+                Memo {
+                    bits,
+                    passes: Some(ok),
+                }
+            })
+            .collect();
+        let verdicts = memos.iter().map(|m| m.passes == Some(true)).collect();
+        self.memo
+            .extend(pairs.iter().zip(memos).map(|(&(i, v), m)| (key(i, v), m)));
+        verdicts
+    }
+
     /// Whether r(v) ≥ r0 for cluster `i` from candidate `v`, counting the samples only until
-    /// the answer is known (memoised).
-    fn passes(&mut self, i: usize, v: usize) -> bool {
-        // Cluster and candidate counts fit u32.
-        #[allow(clippy::cast_possible_truncation)]
-        let key = (i as u32, v as u32);
-        if let Some(b) = self.passes.get(&key) {
-            return *b;
-        }
-        let cells = &self.samples[i];
-        let n = cells.len();
+    /// the answer is known.
+    fn judge(&self, i: usize, v: usize, bits: &mut Bits) -> bool {
+        let n = self.samples[i].len();
         // Cell counts are far below 2^53.
         #[allow(
             clippy::cast_precision_loss,
@@ -323,35 +359,29 @@ impl<F: FieldOfView> Pool<'_, F> {
                 break;
             }
             left -= 1;
-            if self.sample_visible(i, v, j) {
+            if self.visible(i, v, j, bits) {
                 seen += 1;
             }
         }
-        let ok = seen >= need;
-        self.passes.insert(key, ok);
-        ok
+        seen >= need
     }
 
-    /// Whether sample `j` of cluster `i` is seen from candidate `v` (memoised for the first 64
-    /// samples: r0 tests and the choice of representatives ask for the same cells).
-    fn sample_visible(&mut self, i: usize, v: usize, j: usize) -> bool {
+    /// Whether sample `j` of cluster `i` is seen from candidate `v`, remembered in `bits` for
+    /// the first 64 samples.
+    fn visible(&self, i: usize, v: usize, j: usize, bits: &mut Bits) -> bool {
         let c = self.samples[i][j];
         let p = self.points[v];
         if j >= 64 {
             return cell_visible(self.map, &p, c, self.fov, self.config);
         }
-        // Cluster and candidate counts fit u32.
-        #[allow(clippy::cast_possible_truncation)]
-        let key = (i as u32, v as u32);
         let bit = 1u64 << j;
-        let entry = self.sample_bits.entry(key).or_insert((0, 0));
-        if entry.0 & bit != 0 {
-            return entry.1 & bit != 0;
+        if bits.asked & bit != 0 {
+            return bits.seen & bit != 0;
         }
         let seen = cell_visible(self.map, &p, c, self.fov, self.config);
-        entry.0 |= bit;
+        bits.asked |= bit;
         if seen {
-            entry.1 |= bit;
+            bits.seen |= bit;
         }
         seen
     }
@@ -361,23 +391,26 @@ impl<F: FieldOfView> Pool<'_, F> {
         (self.points[v] - self.clusters[i].center()).norm() <= self.reach[i]
     }
 
-    /// Cells of cluster `i` seen from `v`: estimated from the samples, or counted exactly.
-    fn seen(&mut self, i: usize, v: usize, exact: bool) -> f64 {
-        if !exact {
-            let n = self.samples[i].len();
-            let k = (0..n).filter(|&j| self.sample_visible(i, v, j)).count();
-            return ratio(k, n) * self.clusters[i].score();
-        }
+    /// Cells of cluster `i` seen from `v`, estimated from the samples.
+    fn estimate(&self, i: usize, v: usize) -> f64 {
+        let mut bits = self
+            .memo
+            .get(&key(i, v))
+            .map(|m| m.bits)
+            .unwrap_or_default();
+        let n = self.samples[i].len();
+        let k = (0..n).filter(|&j| self.visible(i, v, j, &mut bits)).count();
+        ratio(k, n) * self.clusters[i].score()
+    }
+
+    /// Cells of cluster `i` seen from `v`, counted on every cell.
+    fn count(&self, i: usize, v: usize) -> usize {
         let p = self.points[v];
-        let seen = self.clusters[i]
+        self.clusters[i]
             .cells()
             .iter()
             .filter(|c| cell_visible(self.map, &p, **c, self.fov, self.config))
-            .count();
-        // Counts of whole cells.
-        #[allow(clippy::cast_precision_loss)]
-        let seen = seen as f64;
-        seen
+            .count()
     }
 }
 
@@ -409,9 +442,11 @@ fn extent(min: &Point3<f64>, max: &Point3<f64>) -> f64 {
 ///   [`Target::seen_cells`] is then counted on every cell); ties go to the one nearest to
 ///   `uav`.
 /// - `supported` is the caller's test that a point is in a region the planner can reach (for
-///   example near a node of its topological graph).
+///   example near a node of its topological graph); it is called on this thread, in order.
 ///
-/// Deterministic: the same map, frontier and inputs give the same plan.
+/// Deterministic: the same map, frontier and inputs give the same plan, for any number of
+/// threads. Visibility is evaluated on rayon's thread pool (clusters, and dynamic clusters,
+/// are independent), so `fov` must be `Sync`.
 ///
 /// # Errors
 /// An invalid `config` (see [`ViewpointConfig::validate`]) or a `uav` position that is not
@@ -420,7 +455,7 @@ pub fn plan_targets(
     map: &VoxelMap,
     frontiers: &Frontiers,
     uav: &Point3<f64>,
-    fov: &impl FieldOfView,
+    fov: &(impl FieldOfView + Sync),
     supported: impl Fn(&Point3<f64>) -> bool,
     config: &ViewpointConfig,
 ) -> Result<Plan> {
@@ -438,7 +473,7 @@ pub fn plan_targets_among(
     map: &VoxelMap,
     clusters: &[&Cluster],
     uav: &Point3<f64>,
-    fov: &impl FieldOfView,
+    fov: &(impl FieldOfView + Sync),
     supported: impl Fn(&Point3<f64>) -> bool,
     config: &ViewpointConfig,
 ) -> Result<Plan> {
@@ -466,52 +501,86 @@ pub fn plan_targets_among(
         points: Vec::new(),
         fov,
         config,
-        passes: FxHashMap::default(),
-        sample_bits: FxHashMap::default(),
+        memo: FxHashMap::default(),
     };
     let mut plan = Plan::default();
-    // Each cluster's own candidates, pooled.
+    // Each cluster's own candidates, pooled; the map's tests run in parallel, the caller's
+    // predicate in order on this thread.
+    let free: Vec<(usize, Vec<Point3<f64>>)> = pool
+        .clusters
+        .par_iter()
+        .map(|c| {
+            let all = sample_candidates(c, config);
+            let n = all.len();
+            let kept = all
+                .into_iter()
+                .filter(|p| {
+                    map.state(p) == CellState::Free && map.is_clear(p, config.safety_distance)
+                })
+                .collect();
+            (n, kept)
+        })
+        .collect();
     let mut own: Vec<Vec<usize>> = Vec::with_capacity(pool.clusters.len());
-    for i in 0..pool.clusters.len() {
+    for (n, kept) in free {
+        plan.sampled += n;
         let start = pool.points.len();
-        for p in sample_candidates(pool.clusters[i], config) {
-            plan.sampled += 1;
-            if viewpoint_valid(map, &p, config, &supported) {
-                pool.points.push(p);
-            }
-        }
+        pool.points
+            .extend(kept.into_iter().filter(|p| supported(p)));
         own.push((start..pool.points.len()).collect());
     }
     plan.valid = pool.points.len();
+    // Each cluster's own visible region.
+    let pairs: Vec<(usize, usize)> = own
+        .iter()
+        .enumerate()
+        .flat_map(|(i, vs)| vs.iter().map(move |&v| (i, v)))
+        .collect();
+    let verdicts = pool.judge_all(&pairs);
+    let mut regions: Vec<Vec<usize>> = vec![Vec::new(); own.len()];
+    for (&(i, v), ok) in pairs.iter().zip(verdicts) {
+        if ok {
+            regions[i].push(v);
+        }
+    }
     let mut dynamic: Vec<Dynamic> = Vec::new();
     for i in 0..pool.clusters.len() {
-        let region: Vec<usize> = own[i]
-            .clone()
-            .into_iter()
-            .filter(|&v| pool.passes(i, v))
-            .collect();
+        let region = core::mem::take(&mut regions[i]);
         if region.is_empty() {
             plan.unviewable.push(pool.clusters[i].id());
             continue;
         }
         let (cmin, cmax) = (pool.clusters[i].bbox_min(), pool.clusters[i].bbox_max());
         let reach = 2.0 * config.sensor_range;
+        // The viewpoints of every dynamic cluster near enough to share some with this one.
+        let near: Vec<(usize, Vec<usize>)> = dynamic
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| {
+                // Quick reject: boxes too far apart to be seen from one point.
+                let gap = (0..3)
+                    .map(|a| (d.min[a] - cmax[a]).max(cmin[a] - d.max[a]).max(0.0))
+                    .fold(0.0f64, |s, g| s + g * g)
+                    .sqrt();
+                gap <= reach
+            })
+            .map(|(k, d)| {
+                let vs = d.region.iter().copied().filter(|&v| pool.near(i, v));
+                (k, vs.collect())
+            })
+            .collect();
+        let pairs: Vec<(usize, usize)> = near
+            .iter()
+            .flat_map(|(_, vs)| vs.iter().map(|&v| (i, v)))
+            .collect();
+        let mut verdicts = pool.judge_all(&pairs).into_iter();
         let mut best: Option<(f64, usize, Vec<usize>)> = None;
-        for (k, d) in dynamic.iter().enumerate() {
-            // Quick reject: boxes too far apart to be seen from one point.
-            let gap = (0..3)
-                .map(|a| (d.min[a] - cmax[a]).max(cmin[a] - d.max[a]).max(0.0))
-                .fold(0.0f64, |s, g| s + g * g)
-                .sqrt();
-            if gap > reach {
-                continue;
-            }
-            let mut shared: Vec<usize> = Vec::new();
-            for &v in &d.region {
-                if pool.near(i, v) && pool.passes(i, v) {
-                    shared.push(v);
-                }
-            }
+        for (k, vs) in near {
+            let d = &dynamic[k];
+            let shared: Vec<usize> = vs
+                .into_iter()
+                .filter(|_| verdicts.next() == Some(true))
+                .collect();
             if shared.is_empty() {
                 continue;
             }
@@ -540,36 +609,41 @@ pub fn plan_targets_among(
             }),
         }
     }
-    for d in &dynamic {
-        let mut best: Option<(f64, f64, usize)> = None;
-        for &v in &d.region {
-            let seen: f64 = d.members.iter().map(|&m| pool.seen(m, v, false)).sum();
-            let dist = (pool.points[v] - uav).norm();
-            let better = best.is_none_or(|(s, bd, _)| seen > s || (seen == s && dist < bd));
-            if better {
-                best = Some((seen, dist, v));
+    // Representatives: the most member cells seen (estimated on the samples), ties to the
+    // nearest; then the exact count. Dynamic clusters are independent.
+    let pool = &pool;
+    let targets: Vec<Option<Target>> = dynamic
+        .par_iter()
+        .map(|d| {
+            let mut best: Option<(f64, f64, usize)> = None;
+            for &v in &d.region {
+                let seen: f64 = d.members.iter().map(|&m| pool.estimate(m, v)).sum();
+                let dist = (pool.points[v] - uav).norm();
+                let better = best.is_none_or(|(s, bd, _)| seen > s || (seen == s && dist < bd));
+                if better {
+                    best = Some((seen, dist, v));
+                }
             }
-        }
-        let Some((_, _, v)) = best else { continue };
-        let seen: f64 = d.members.iter().map(|&m| pool.seen(m, v, true)).sum();
-        let cells: usize = d
-            .members
-            .iter()
-            .map(|&m| pool.clusters[m].cells().len())
-            .sum();
-        let center = d.members.iter().fold(Vector3::zeros(), |s, &m| {
-            s + pool.clusters[m].center().coords * pool.clusters[m].score()
-        }) / ratio(cells, 1);
-        plan.targets.push(Target {
-            viewpoint: pool.points[v],
-            members: d.members.iter().map(|&m| pool.clusters[m].id()).collect(),
-            center: Point3::from(center),
-            score: ratio(cells, 1),
-            // Exact counts of whole cells.
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-            seen_cells: seen.round() as usize,
-            shared_viewpoints: d.region.len(),
-        });
-    }
+            let (_, _, v) = best?;
+            let seen: usize = d.members.iter().map(|&m| pool.count(m, v)).sum();
+            let cells: usize = d
+                .members
+                .iter()
+                .map(|&m| pool.clusters[m].cells().len())
+                .sum();
+            let center = d.members.iter().fold(Vector3::zeros(), |s, &m| {
+                s + pool.clusters[m].center().coords * pool.clusters[m].score()
+            }) / ratio(cells, 1);
+            Some(Target {
+                viewpoint: pool.points[v],
+                members: d.members.iter().map(|&m| pool.clusters[m].id()).collect(),
+                center: Point3::from(center),
+                score: ratio(cells, 1),
+                seen_cells: seen,
+                shared_viewpoints: d.region.len(),
+            })
+        })
+        .collect();
+    plan.targets = targets.into_iter().flatten().collect();
     Ok(plan)
 }
