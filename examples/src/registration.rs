@@ -195,6 +195,12 @@ fn floor_i64(x: f64) -> i64 {
     if up { i.saturating_sub(1) } else { i }
 }
 
+/// The squared radius of a sphere query, or −1 (no point is that near) for a negative or NaN
+/// radius, whose square would otherwise read as a sphere of radius |r| or as everything.
+fn squared_radius(radius: f64) -> f64 {
+    if radius >= 0.0 { radius * radius } else { -1.0 }
+}
+
 /// The positions of the set bits of `bits`, lowest first.
 fn set_bits(mut bits: u64) -> impl Iterator<Item = usize> {
     core::iter::from_fn(move || {
@@ -292,9 +298,10 @@ impl VoxelCloud {
         }
     }
 
-    /// Drops the points farther than `radius` from `centre`.
+    /// Drops the points farther than `radius` from `centre` (all of them for a negative or
+    /// NaN radius: no point is within it).
     pub fn retain_within(&mut self, centre: &Point3<f64>, radius: f64) {
-        let r2 = radius * radius;
+        let r2 = squared_radius(radius);
         let mut len = 0;
         let size = self.size;
         self.blocks.retain(|key, block| {
@@ -319,13 +326,13 @@ impl VoxelCloud {
 
     /// The points within `radius` of `centre`: the same points, in the same order, as
     /// filtering [`VoxelCloud::points`] by distance, with whole blocks decided by their boxes
-    /// as in [`VoxelCloud::retain_within`].
+    /// as in [`VoxelCloud::retain_within`]. None for a negative or NaN radius.
     pub fn points_within<'a>(
         &'a self,
         centre: &'a Point3<f64>,
         radius: f64,
     ) -> impl Iterator<Item = &'a Point3<f64>> + 'a {
-        let r2 = radius * radius;
+        let r2 = squared_radius(radius);
         self.blocks.iter().flat_map(move |(key, b)| {
             let (used, test) = match Self::block_side(self.size, key, centre, r2) {
                 None => (0, false),
@@ -341,9 +348,9 @@ impl VoxelCloud {
     /// same points, in the same order, as collecting [`VoxelCloud::points_within`] and
     /// stepping through it, without listing the n points (whole blocks inside the sphere are
     /// counted and indexed by their occupancy bits). At most `max` points (`max` = 0 counts
-    /// as 1).
+    /// as 1). None for a negative or NaN radius.
     pub fn sample_within(&self, centre: &Point3<f64>, radius: f64, max: usize) -> Vec<Point3<f64>> {
-        let r2 = radius * radius;
+        let r2 = squared_radius(radius);
         let within = |b: &VoxelBlock, s: usize| (b.points[s] - centre).norm_squared() <= r2;
         // The blocks that hold points within, in map order, with whether to test each point.
         let mut blocks: Vec<(&VoxelBlock, bool)> = Vec::new();
@@ -813,6 +820,24 @@ mod tests {
             proptest::prop_assert_eq!(all.len(), want.len());
             proptest::prop_assert_eq!(sorted(&all), want);
         }
+    }
+
+    #[test]
+    fn a_negative_or_nan_radius_holds_no_point() {
+        let mut cloud = VoxelCloud::new(0.1);
+        let n = cloud.extend((0..50).map(|i| Point3::new(0.1 * f64::from(i) + 0.05, 0.0, 0.0)));
+        assert_eq!(n, 50);
+        let centre = Point3::new(1.0, 0.0, 0.0);
+        for r in [-0.5, -f64::INFINITY, f64::NAN] {
+            assert_eq!(cloud.points_within(&centre, r).count(), 0, "{r}");
+            assert!(cloud.sample_within(&centre, r, 10).is_empty(), "{r}");
+        }
+        assert_eq!(cloud.points_within(&centre, f64::INFINITY).count(), 50);
+        let mut dropped = cloud.clone();
+        dropped.retain_within(&centre, f64::NAN);
+        assert_eq!(dropped.len(), 0);
+        cloud.retain_within(&centre, 0.5);
+        assert!(!cloud.is_empty() && cloud.len() < 50);
     }
 
     #[test]
