@@ -287,14 +287,6 @@ struct Bits {
     seen: u64,
 }
 
-/// What is known of a (cluster, candidate) pair.
-#[derive(Debug, Clone, Copy, Default)]
-struct Memo {
-    bits: Bits,
-    /// Whether r(v) ≥ r0, once judged.
-    passes: Option<bool>,
-}
-
 /// Pooled candidates and lazily evaluated visibility.
 struct Pool<'a, F> {
     map: &'a VoxelMap,
@@ -306,7 +298,8 @@ struct Pool<'a, F> {
     points: Vec<Point3<f64>>,
     fov: &'a F,
     config: &'a ViewpointConfig,
-    memo: FxHashMap<(u32, u32), Memo>,
+    /// The samples' visibility found so far, per (cluster, candidate) pair judged.
+    memo: FxHashMap<(u32, u32), Bits>,
 }
 
 /// The key of a (cluster, candidate) pair; both counts fit `u32`.
@@ -317,26 +310,26 @@ fn key(i: usize, v: usize) -> (u32, u32) {
 
 impl<F: FieldOfView> Pool<'_, F> {
     /// Judges r(v) ≥ r0 for every (cluster, candidate) pair of `pairs`, in parallel (pairs
-    /// are independent), remembers the outcomes, and returns the verdicts in order.
+    /// are independent), remembers the samples' visibility, and returns the verdicts in order.
     fn judge_all(&mut self, pairs: &[(usize, usize)]) -> Vec<bool>
     where
         F: Sync,
     {
         let this = &*self;
-        let memos: Vec<Memo> = pairs
+        let judged: Vec<(bool, Bits)> = pairs
             .par_iter()
             .map(|&(i, v)| {
                 let mut bits = Bits::default();
-                let ok = this.judge(i, v, &mut bits);
-                Memo {
-                    bits,
-                    passes: Some(ok),
-                }
+                (this.judge(i, v, &mut bits), bits)
             })
             .collect();
-        let verdicts = memos.iter().map(|m| m.passes == Some(true)).collect();
-        self.memo
-            .extend(pairs.iter().zip(memos).map(|(&(i, v), m)| (key(i, v), m)));
+        let verdicts = judged.iter().map(|(ok, _)| *ok).collect();
+        self.memo.extend(
+            pairs
+                .iter()
+                .zip(judged)
+                .map(|(&(i, v), (_, bits))| (key(i, v), bits)),
+        );
         verdicts
     }
 
@@ -393,11 +386,7 @@ impl<F: FieldOfView> Pool<'_, F> {
 
     /// Cells of cluster `i` seen from `v`, estimated from the samples.
     fn estimate(&self, i: usize, v: usize) -> f64 {
-        let mut bits = self
-            .memo
-            .get(&key(i, v))
-            .map(|m| m.bits)
-            .unwrap_or_default();
+        let mut bits = self.memo.get(&key(i, v)).copied().unwrap_or_default();
         let n = self.samples[i].len();
         let k = (0..n).filter(|&j| self.visible(i, v, j, &mut bits)).count();
         ratio(k, n) * self.clusters[i].score()
@@ -573,14 +562,18 @@ pub fn plan_targets_among(
             .iter()
             .flat_map(|(_, vs)| vs.iter().map(|&v| (i, v)))
             .collect();
-        let mut verdicts = pool.judge_all(&pairs).into_iter();
+        let verdicts = pool.judge_all(&pairs);
         let mut best: Option<(f64, usize, Vec<usize>)> = None;
+        let mut at = 0;
         for (k, vs) in near {
             let d = &dynamic[k];
             let shared: Vec<usize> = vs
-                .into_iter()
-                .filter(|_| verdicts.next() == Some(true))
+                .iter()
+                .zip(&verdicts[at..])
+                .filter(|(_, ok)| **ok)
+                .map(|(v, _)| *v)
                 .collect();
+            at += vs.len();
             if shared.is_empty() {
                 continue;
             }

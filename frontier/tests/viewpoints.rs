@@ -57,9 +57,32 @@ fn representatives_are_valid_and_see_every_member() {
         }
         assert!(t.seen_cells > 0);
     }
-    // The same inputs give the same plan.
+    // The same inputs give the same plan, on one thread as on several.
     let again = plan_targets(&map, &f, &uav, &Omnidirectional, |_| true, &cfg).unwrap();
     assert_eq!(plan, again);
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let other = pool
+            .install(|| plan_targets(&map, &f, &uav, &Omnidirectional, |_| true, &cfg))
+            .unwrap();
+        assert_eq!(plan, other, "{threads} threads");
+    }
+    // The sampled visibility gives the same plan on any number of threads too.
+    let sampled = ViewpointConfig {
+        visibility_samples: 8,
+        ..cfg.clone()
+    };
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| plan_targets(&map, &f, &uav, &Omnidirectional, |_| true, &sampled))
+        .unwrap();
+    let many = plan_targets(&map, &f, &uav, &Omnidirectional, |_| true, &sampled).unwrap();
+    assert_eq!(one, many);
     // A reachability test that rejects everything leaves every cluster unviewable.
     let none = plan_targets(&map, &f, &uav, &Omnidirectional, |_| false, &cfg).unwrap();
     assert!(none.targets.is_empty());
