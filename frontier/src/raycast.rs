@@ -227,9 +227,6 @@ impl Walk {
         block: impl Fn(usize) -> &'a [i8; BLOCK_CELLS],
         blocks: impl Fn(i8) -> bool,
     ) -> bool {
-        if self.remaining <= 1 {
-            return false;
-        }
         let edge = 1usize << BLOCK_BITS;
         let unit = [1, edge, edge * edge];
         let last = BLOCK_MASK as usize;
@@ -248,39 +245,19 @@ impl Walk {
             }
         }
         let wrap = self.step.map(|s| if s > 0 { 0u32 } else { BLOCK_MASK });
-        let [sx, sy, sz] = self.step.map(i32::cast_unsigned);
-        let (mut x, mut y, mut z) = (self.x, self.y, self.z);
-        let (mut tx, mut ty, mut tz) = (self.tx, self.ty, self.tz);
-        let mut index = ((x & BLOCK_MASK)
-            | ((y & BLOCK_MASK) << BLOCK_BITS)
-            | ((z & BLOCK_MASK) << (2 * BLOCK_BITS))) as usize;
+        let mut walk = self;
+        let mut index = ((walk.x & BLOCK_MASK)
+            | ((walk.y & BLOCK_MASK) << BLOCK_BITS)
+            | ((walk.z & BLOCK_MASK) << (2 * BLOCK_BITS))) as usize;
         let mut entry = entry;
         let mut values = block(entry);
-        for _ in 1..self.remaining {
-            let (coord, k) = if tx <= ty && tx <= tz {
-                x = x.wrapping_add(sx);
-                tx = if x == self.end[0] {
-                    f64::INFINITY
-                } else {
-                    tx + self.dt[0]
-                };
-                (x, 0)
-            } else if ty <= tz {
-                y = y.wrapping_add(sy);
-                ty = if y == self.end[1] {
-                    f64::INFINITY
-                } else {
-                    ty + self.dt[1]
-                };
-                (y, 1)
-            } else {
-                z = z.wrapping_add(sz);
-                tz = if z == self.end[2] {
-                    f64::INFINITY
-                } else {
-                    tz + self.dt[2]
-                };
-                (z, 2)
+        // Every step but the last, which enters the target.
+        while walk.remaining > 1 {
+            let Some(k) = walk.advance() else { break };
+            let coord = match k {
+                0 => walk.x,
+                1 => walk.y,
+                _ => walk.z,
             };
             if coord & BLOCK_MASK == wrap[k] {
                 index = index.wrapping_add(winc[k]);
