@@ -645,15 +645,25 @@ mod tests {
         let mut noise = Vec::new();
         let mut scratch = vec![0.0; x.len()];
         for k in 0..x.len() {
-            let h = 1e-6 * x[k].abs().max(1.0);
-            let (mut xp, mut xm) = (x.clone(), x.clone());
-            xp[k] += h;
-            xm[k] -= h;
-            let fp = opt.cost_and_gradient(&xp, &mut scratch).unwrap();
-            let fm = opt.cost_and_gradient(&xm, &mut scratch).unwrap();
-            num.push((fp - fm) / (2.0 * h));
-            // The difference's rounding: a few ulps of the cost over the step.
-            noise.push(8.0 * f64::EPSILON * fp.abs().max(fm.abs()) / (2.0 * h));
+            // Richardson's extrapolation of central differences with steps h and h/2 cancels
+            // their h² error: one step cannot serve every case, as at 1e-6 the cost's
+            // rounding (it sums many terms) reached 1e-6 of the gradient in some and at 1e-5
+            // the truncation did in others.
+            let h = 1e-5 * x[k].abs().max(1.0);
+            let mut central = |h: f64| {
+                let (mut xp, mut xm) = (x.clone(), x.clone());
+                xp[k] += h;
+                xm[k] -= h;
+                let fp = opt.cost_and_gradient(&xp, &mut scratch).unwrap();
+                let fm = opt.cost_and_gradient(&xm, &mut scratch).unwrap();
+                ((fp - fm) / (2.0 * h), fp.abs().max(fm.abs()))
+            };
+            let (coarse, f1) = central(h);
+            let (fine, f2) = central(0.5 * h);
+            num.push((4.0 * fine - coarse) / 3.0);
+            // The differences' rounding, a few ulps of the cost over each step, as weighted.
+            let ulps = 8.0 * f64::EPSILON;
+            noise.push((4.0 * ulps * f2 / h + ulps * f1 / (2.0 * h)) / 3.0);
         }
         crate::test_util::check_gradient_blocks_with_noise(&num, &g, 3 * inner, &noise)?;
         Ok(())
