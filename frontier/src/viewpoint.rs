@@ -268,7 +268,13 @@ pub fn viewpoint_valid(
     config: &ViewpointConfig,
     supported: &impl Fn(&Point3<f64>) -> bool,
 ) -> bool {
-    map.state(p) == CellState::Free && map.is_clear(p, config.safety_distance) && supported(p)
+    map_allows(map, p, config) && supported(p)
+}
+
+/// The map's part of [`viewpoint_valid`]: inside the bounds, in a known-free cell, with
+/// clearance at least the safety distance.
+fn map_allows(map: &VoxelMap, p: &Point3<f64>, config: &ViewpointConfig) -> bool {
+    map.state(p) == CellState::Free && map.is_clear(p, config.safety_distance)
 }
 
 /// At most `k` evenly spaced cells of `cells` (all of them for `k = 0`).
@@ -503,30 +509,23 @@ pub fn plan_targets_among(
             let n = all.len();
             let kept = all
                 .into_iter()
-                .filter(|p| {
-                    map.state(p) == CellState::Free && map.is_clear(p, config.safety_distance)
-                })
+                .filter(|p| map_allows(map, p, config))
                 .collect();
             (n, kept)
         })
         .collect();
-    let mut own: Vec<Vec<usize>> = Vec::with_capacity(pool.clusters.len());
-    for (n, kept) in free {
+    // Each cluster's own visible region: the pairs of a cluster and its own candidates.
+    let mut pairs: Vec<(usize, usize)> = Vec::new();
+    for (i, (n, kept)) in free.into_iter().enumerate() {
         plan.sampled += n;
         let start = pool.points.len();
         pool.points
             .extend(kept.into_iter().filter(|p| supported(p)));
-        own.push((start..pool.points.len()).collect());
+        pairs.extend((start..pool.points.len()).map(|v| (i, v)));
     }
     plan.valid = pool.points.len();
-    // Each cluster's own visible region.
-    let pairs: Vec<(usize, usize)> = own
-        .iter()
-        .enumerate()
-        .flat_map(|(i, vs)| vs.iter().map(move |&v| (i, v)))
-        .collect();
     let verdicts = pool.judge_all(&pairs);
-    let mut regions: Vec<Vec<usize>> = vec![Vec::new(); own.len()];
+    let mut regions: Vec<Vec<usize>> = vec![Vec::new(); pool.clusters.len()];
     for (&(i, v), ok) in pairs.iter().zip(verdicts) {
         if ok {
             regions[i].push(v);
