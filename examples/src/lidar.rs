@@ -3,7 +3,7 @@
 //! return beyond the range.
 
 use lidar_kinematics::{Beam, KinematicChain, KinematicsError, LidarSensor};
-use nalgebra::{Isometry3, Point3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 use rayon::prelude::*;
 
@@ -110,7 +110,25 @@ impl LidarSim {
     ) -> Result<(), KinematicsError> {
         out.clear();
         self.misses.clear();
-        self.sensor.pattern().fill_frame(index, &mut self.beams);
+        // Each beam is a pure function of its index: generated in parallel (the libm sines
+        // and cosines would otherwise be a serial share of the frame).
+        let pattern = self.sensor.pattern();
+        self.beams.resize(
+            pattern.points_per_frame(),
+            Beam {
+                time_offset: 0.0,
+                direction: Vector3::x_axis(),
+            },
+        );
+        self.beams
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(BEAM_CHUNK)
+            .for_each(|(k, b)| {
+                if let Some(beam) = pattern.beam(index, k) {
+                    *b = beam;
+                }
+            });
         let range = *self.sensor.range();
         // The frame's span of beam times, sampled every `POSE_STEP`.
         let (lo, hi) = self

@@ -18,6 +18,8 @@ use nalgebra::{
     Isometry3, Matrix3, Matrix6, Point3, SMatrix, Translation3, UnitQuaternion, Vector3, Vector6,
 };
 
+use rayon::prelude::*;
+
 use crate::lidar::LidarPoint;
 use crate::registration::{
     Registration, RegistrationConfig, VoxelCloud, register_with_prior, voxel_key,
@@ -139,7 +141,9 @@ pub struct Odometry {
     last_imu: Option<ImuSample>,
     /// Propagated poses since the last frame end (the first one at that frame end).
     poses: Vec<PoseSample>,
-    deskewer: Deskewer,
+    /// One deskewer per chunk of [`DESKEW_CHUNK`] points (at least one), so a frame is
+    /// deskewed in parallel.
+    deskewers: Vec<Deskewer>,
     /// The local map: registered points, one per voxel; its neighbour search needs no tree.
     map: VoxelCloud,
     frames: usize,
@@ -158,7 +162,7 @@ impl Odometry {
             covariance: Covariance::identity() * (INITIAL_STD * INITIAL_STD),
             last_imu: None,
             poses: vec![PoseSample::new(initial.time, initial.pose())],
-            deskewer: Deskewer::new(chain),
+            deskewers: vec![Deskewer::new(chain)],
             map: VoxelCloud::new(config.map_voxel),
             frames: 0,
             deskewed: Vec::new(),
@@ -342,13 +346,7 @@ impl Odometry {
             // A frame end at the last pose time: deskew needs a span.
             self.poses.push(PoseSample::new(t_end + 1e-9, predicted));
         }
-        self.deskewer.deskew(
-            &self.poses,
-            &angles,
-            &self.timed,
-            DeskewTarget::BodyAt(t_end),
-            &mut self.deskewed,
-        )?;
+        self.deskew(&angles, t_end)?;
         self.deskewed_misses.clear();
         self.deskewed_misses
             .extend_from_slice(&self.deskewed[points.len()..]);
@@ -359,7 +357,7 @@ impl Odometry {
             _ => Some(self.update(&scan, &predicted)),
         };
         let pose = self.state.pose();
-        self.map.extend(self.deskewed.iter().map(|p| pose * p));
+        self.map.extend_transformed(&pose, &self.deskewed);
         self.frames += 1;
         if self
             .frames
@@ -375,6 +373,37 @@ impl Odometry {
             registration,
             map_points: self.map.len(),
         })
+    }
+
+    /// Deskews `self.timed` into `self.deskewed` to the body frame at `t_end`, in chunks of
+    /// [`DESKEW_CHUNK`] points on rayon's pool: each point's deskew depends on that point
+    /// alone, so the result does not depend on the chunks, and the error (if any) is the
+    /// first chunk's, that of the first bad point as in one pass.
+    fn deskew(&mut self, angles: &[AngleSample], t_end: f64) -> Result<(), KinematicsError> {
+        let target = DeskewTarget::BodyAt(t_end);
+        let chunks = self.timed.len().div_ceil(DESKEW_CHUNK);
+        if chunks <= 1 {
+            // One chunk, or none: an empty frame still has its samples checked.
+            return self.deskewers[0].deskew(
+                &self.poses,
+                angles,
+                &self.timed,
+                target,
+                &mut self.deskewed,
+            );
+        }
+        while self.deskewers.len() < chunks {
+            let more = self.deskewers[0].clone();
+            self.deskewers.push(more);
+        }
+        let poses = &self.poses;
+        let results: Vec<Result<(), KinematicsError>> = self.deskewers[..chunks]
+            .par_iter_mut()
+            .zip(self.timed.par_chunks(DESKEW_CHUNK))
+            .zip(self.deskewed.par_chunks_mut(DESKEW_CHUNK))
+            .map(|((d, points), out)| d.deskew(poses, angles, points, target, out))
+            .collect();
+        results.into_iter().collect()
     }
 
     /// The filter's update: the registration with the prediction as its prior, then the
@@ -432,12 +461,81 @@ impl Odometry {
     }
 }
 
+/// Points per parallel task of the odometry's deskew.
+const DESKEW_CHUNK: usize = 4096;
+
 /// One point per voxel of edge `v` (the first), in input order.
 pub(crate) fn thin(points: &[Point3<f64>], v: f64) -> Vec<Point3<f64>> {
-    let mut seen = rustc_hash::FxHashSet::default();
+    // Sized for every point at once: no rehash as the set grows.
+    let mut seen =
+        rustc_hash::FxHashSet::with_capacity_and_hasher(points.len(), Default::default());
     points
         .iter()
         .filter(|p| p.iter().all(|c| c.is_finite()) && seen.insert(voxel_key(p, v)))
         .copied()
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+    use super::*;
+
+    /// The chunked deskew equals one pass of one deskewer bit for bit, over several chunks,
+    /// and reports the first bad point's error as that pass would.
+    #[test]
+    fn chunked_deskew_equals_one_pass() {
+        let chain = KinematicChain::default();
+        let initial = NavState {
+            time: 0.0,
+            position: Vector3::new(1.0, 2.0, 3.0),
+            velocity: Vector3::zeros(),
+            attitude: UnitQuaternion::identity(),
+        };
+        let mut odo = Odometry::new(chain, OdometryConfig::default(), initial);
+        odo.poses = (0..=20u32)
+            .map(|k| {
+                let t = f64::from(k) * 0.005;
+                PoseSample::new(
+                    t,
+                    Isometry3::new(
+                        Vector3::new(t, 0.5 * t, 0.0),
+                        Vector3::new(0.0, 0.1, 0.3 * t),
+                    ),
+                )
+            })
+            .collect();
+        let angles: Vec<AngleSample> = (0..=100u32)
+            .map(|k| {
+                let t = f64::from(k) * 0.001;
+                AngleSample::new(t, (1.7 * t).rem_euclid(TAU))
+            })
+            .collect();
+        let n = 3 * DESKEW_CHUNK + 17;
+        let n_f = f64::from(u32::try_from(n).unwrap());
+        odo.timed = (0..n)
+            .map(|i| {
+                let x = f64::from(u32::try_from(i).unwrap());
+                // Times from 0 to 0.1 s, many on the sample times.
+                TimedPoint::new(
+                    0.1 * x / n_f,
+                    Point3::new(x.sin() * 5.0, x.cos() * 4.0, 0.3 * (0.1 * x).sin()),
+                )
+            })
+            .collect();
+        odo.deskewed.resize(n, Point3::origin());
+        odo.deskew(&angles, 0.1).unwrap();
+        assert!(odo.deskewers.len() >= 4);
+        let whole = Deskewer::new(chain)
+            .deskew_to_vec(&odo.poses, &angles, &odo.timed, DeskewTarget::BodyAt(0.1))
+            .unwrap();
+        assert_eq!(odo.deskewed, whole);
+        // Bad times in the third and the second chunk: the second chunk's is the first.
+        odo.timed[2 * DESKEW_CHUNK + 5].time = 0.5;
+        odo.timed[DESKEW_CHUNK + 3].time = -1.0;
+        match odo.deskew(&angles, 0.1) {
+            Err(KinematicsError::TimeOutOfRange { time, .. }) => assert_eq!(time, -1.0),
+            other => panic!("expected the time error of the first bad point, got {other:?}"),
+        }
+    }
 }

@@ -201,6 +201,9 @@ fn squared_radius(radius: f64) -> f64 {
     if radius >= 0.0 { radius * radius } else { -1.0 }
 }
 
+/// Points per parallel task of [`VoxelCloud::extend_transformed`].
+const EXTEND_CHUNK: usize = 4096;
+
 /// The positions of the set bits of `bits`, lowest first.
 fn set_bits(mut bits: u64) -> impl Iterator<Item = usize> {
     core::iter::from_fn(move || {
@@ -271,6 +274,28 @@ impl VoxelCloud {
         }
         self.len += added;
         added
+    }
+
+    /// [`VoxelCloud::extend`] with `pose * p` for each of `points`, the transforms and the
+    /// lookups of the voxels taken before the call done in parallel (rayon): only the points
+    /// that may be added reach the serial insertion, so the same points are added, in the
+    /// same order, as by `extend`.
+    pub fn extend_transformed(&mut self, pose: &Isometry3<f64>, points: &[Point3<f64>]) -> usize {
+        let fresh: Vec<Point3<f64>> = points
+            .par_iter()
+            .with_min_len(EXTEND_CHUNK)
+            .map(|p| pose * p)
+            .filter(|p| p.iter().all(|c| c.is_finite()) && !self.holds_voxel_of(p))
+            .collect();
+        self.extend(fresh)
+    }
+
+    /// Whether the voxel of `p` holds a point.
+    fn holds_voxel_of(&self, p: &Point3<f64>) -> bool {
+        let (b, slot) = block_slot(self.key(p));
+        self.blocks
+            .get(&b)
+            .is_some_and(|block| block.used & (1 << slot) != 0)
     }
 
     /// How block `key`'s box (voxels of edge `size`) lies against the sphere of squared
@@ -819,6 +844,36 @@ mod tests {
             want.sort_by(|a, b| a.partial_cmp(b).unwrap());
             proptest::prop_assert_eq!(all.len(), want.len());
             proptest::prop_assert_eq!(sorted(&all), want);
+        }
+
+        /// `extend_transformed` adds what `extend` adds for the transformed points, in the
+        /// same order (so the clouds list their points alike), onto a cloud that already
+        /// holds some voxels, with repeats and non-finite points in the batch; the batch is
+        /// large enough to be split between threads.
+        #[test]
+        fn extend_transformed_equals_extend(
+            before in proptest::collection::vec((-3.0f64..3.0, -3.0f64..3.0, -1.0f64..1.0), 0..200),
+            batch in proptest::collection::vec((-3.0f64..3.0, -3.0f64..3.0, -1.0f64..1.0), 0..12_000),
+            t in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+            r in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+            size in 0.05f64..0.6,
+        ) {
+            let pose = Isometry3::new(Vector3::new(t.0, t.1, t.2), Vector3::new(r.0, r.1, r.2));
+            let to_point = |&(x, y, z): &(f64, f64, f64)| Point3::new(x, y, z);
+            let mut batch: Vec<Point3<f64>> = batch.iter().map(to_point).collect();
+            let repeats: Vec<Point3<f64>> = batch.iter().step_by(7).copied().collect();
+            batch.extend(repeats);
+            batch.push(Point3::new(f64::NAN, 0.0, 0.0));
+            batch.push(Point3::new(0.0, 0.0, f64::NEG_INFINITY));
+            let mut serial = VoxelCloud::new(size);
+            serial.extend(before.iter().map(to_point));
+            let mut parallel = serial.clone();
+            let a = serial.extend(batch.iter().map(|p| pose * p));
+            let b = parallel.extend_transformed(&pose, &batch);
+            proptest::prop_assert_eq!(a, b);
+            proptest::prop_assert_eq!(serial.len(), parallel.len());
+            let listed = |c: &VoxelCloud| c.points().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>();
+            proptest::prop_assert_eq!(listed(&serial), listed(&parallel));
         }
     }
 

@@ -203,12 +203,20 @@ fn check_times(times: impl Iterator<Item = f64>, what: &'static str) -> Result<(
     Ok(())
 }
 
-/// Index of the span containing `t`, trying `hint` first (points usually come in time order).
+/// Index of the first span ending at or after `t` (the last span for a later `t`), trying
+/// `hint` first (points usually come in time order). The answer does not depend on the hint:
+/// a time on the boundary of two contiguous spans goes to the earlier one whatever the
+/// previous point was, so a point's deskew depends on that point alone and a frame may be
+/// deskewed in chunks.
 #[inline]
 fn find_span<S>(spans: &[S], hint: usize, t: f64, bounds: impl Fn(&S) -> (f64, f64)) -> usize {
     if let Some(s) = spans.get(hint) {
         let (a, b) = bounds(s);
-        if t >= a && t <= b {
+        let after_previous = match hint.checked_sub(1).and_then(|p| spans.get(p)) {
+            Some(p) => bounds(p).1 < t,
+            None => true,
+        };
+        if t >= a && t <= b && after_previous {
             return hint;
         }
     }

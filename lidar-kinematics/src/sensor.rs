@@ -553,6 +553,25 @@ impl BeamPattern {
         }
     }
 
+    /// Beam `k` of frame `frame_index`, or `None` when `k` is not below
+    /// [`BeamPattern::points_per_frame`]: the same beam [`BeamPattern::frame`] yields `k`-th,
+    /// computed on its own, so a caller can generate a frame's beams in any order or in
+    /// parallel.
+    ///
+    /// # Example
+    /// ```
+    /// use lidar_kinematics::LidarSensor;
+    /// let pattern = LidarSensor::mid360().pattern().clone();
+    /// assert_eq!(pattern.beam(3, 17), pattern.frame(3).nth(17));
+    /// assert_eq!(pattern.beam(3, pattern.points_per_frame()), None);
+    /// ```
+    pub fn beam(&self, frame_index: u64, k: usize) -> Option<Beam> {
+        (k < self.points_per_frame()).then(|| match self {
+            Self::Spinning(p) => p.beam(k),
+            Self::NonRepetitive(p) => p.beam(frame_index, k),
+        })
+    }
+
     /// Appends the beams of frame `frame_index` to `out` (reuses its capacity).
     pub fn fill_frame(&self, frame_index: u64, out: &mut Vec<Beam>) {
         out.clear();
@@ -590,10 +609,12 @@ impl Iterator for Frame<'_> {
         }
         let k = self.next;
         self.next += 1;
-        Some(match self.pattern {
-            BeamPattern::Spinning(p) => p.beam(k),
-            BeamPattern::NonRepetitive(p) => p.beam(self.frame_index, k),
-        })
+        self.pattern.beam(self.frame_index, k)
+    }
+
+    fn nth(&mut self, n: usize) -> Option<Beam> {
+        self.next = self.next.saturating_add(n).min(self.len);
+        self.next()
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
@@ -870,6 +891,37 @@ mod tests {
             let el = p.elevation_min + (p.elevation_max - p.elevation_min) * (1.0 - (2.0 * phase - 1.0).abs());
             let b = p.beam(frame, k);
             prop_assert_eq!(b.direction.into_inner(), direction(az, el).into_inner());
+        }
+    }
+
+    proptest! {
+        /// Random access gives the iterator's beams, for both families; `nth` skips to the
+        /// same beam and ends the frame where the iterator does.
+        #[test]
+        fn random_access_beams_equal_the_frame_iterator(
+            frame in 0u64..1000,
+            k in 0usize..20_100,
+            spinning in any::<bool>(),
+        ) {
+            let pattern = if spinning {
+                LidarSensor::ring16().pattern().clone()
+            } else {
+                LidarSensor::mid360().pattern().clone()
+            };
+            let n = pattern.points_per_frame();
+            // Walked one by one (`skip` would call `nth` itself).
+            let mut walked = None;
+            for (i, b) in pattern.frame(frame).enumerate() {
+                if i == k {
+                    walked = Some(b);
+                }
+            }
+            prop_assert_eq!(pattern.beam(frame, k), walked);
+            prop_assert_eq!(pattern.frame(frame).nth(k), walked);
+            prop_assert_eq!(walked.is_some(), k < n);
+            let mut it = pattern.frame(frame);
+            let _ = it.nth(k);
+            prop_assert_eq!(it.len(), n.saturating_sub(k + 1));
         }
     }
 

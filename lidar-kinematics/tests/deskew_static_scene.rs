@@ -126,6 +126,43 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// A point's deskew depends on that point alone, bit for bit: deskewing each point on its
+    /// own gives the whole frame's answer, whatever the order, with many points exactly on the
+    /// sample times where two spans meet. So a frame may be deskewed in chunks.
+    #[test]
+    fn each_point_is_deskewed_as_in_the_whole_frame(
+        m in motion(),
+        ext in extrinsics(),
+        picks in proptest::collection::vec((0u32..3, 0u32..=100, 0.0f64..=FRAME, vec3(30.0)), 1..150),
+    ) {
+        let chain = KinematicChain::new(ext);
+        let points: Vec<TimedPoint> = picks
+            .iter()
+            .map(|&(kind, k, t, p)| {
+                let t = match kind {
+                    // On a pose sample's time, on an angle sample's time, or anywhere.
+                    0 => f64::from(k / 5) * 0.005,
+                    1 => f64::from(k) * 0.001,
+                    _ => t,
+                };
+                TimedPoint::new(t, Point3::from(p))
+            })
+            .collect();
+        let (poses, angles) = samples(&m);
+        let mut deskewer = Deskewer::new(chain);
+        for target in [DeskewTarget::World, DeskewTarget::BodyAt(0.05)] {
+            let whole = deskewer.deskew_to_vec(&poses, &angles, &points, target).unwrap();
+            for (p, w) in points.iter().zip(&whole) {
+                let alone = deskewer.deskew_to_vec(&poses, &angles, &[*p], target).unwrap();
+                prop_assert_eq!(alone[0], *w, "point at {} s", p.time);
+            }
+        }
+    }
+}
+
 /// Without deskew (one pose for the whole frame) the same scene is smeared: the test above is not trivially satisfied.
 #[test]
 fn ignoring_motion_would_fail() {
