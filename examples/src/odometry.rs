@@ -516,7 +516,7 @@ mod tests {
         odo.timed = (0..n)
             .map(|i| {
                 let x = f64::from(u32::try_from(i).unwrap());
-                // Times from 0 to 0.1 s, many on the sample times.
+                // Times spread over the frame, 0 to 0.1 s.
                 TimedPoint::new(
                     0.1 * x / n_f,
                     Point3::new(x.sin() * 5.0, x.cos() * 4.0, 0.3 * (0.1 * x).sin()),
