@@ -62,7 +62,7 @@ pub(crate) struct ActiveSet {
 
 impl ActiveSet {
     /// Precomputes H⁻¹ and its products with the speed constraints; `None` if H is not
-    /// positive definite (ρ ≤ 0 or a non-finite setting).
+    /// positive definite (ρ ≤ 0 or a non-finite setting) or the tables overflow.
     pub(crate) fn new(n: usize, gamma: f64, rho: f64, dt: f64) -> Option<Self> {
         if !(rho > 0.0 && gamma >= 0.0 && dt > 0.0 && rho.is_finite() && gamma.is_finite()) {
             return None;
@@ -127,6 +127,11 @@ impl ActiveSet {
                 acc += dt * p[k * n + l];
                 q[k * n + l] = acc;
             }
+        }
+        // Settings so extreme that the tables overflow (γ near f64::MAX, Δt near 1e155) leave
+        // the QP to the general solver.
+        if !minv.iter().chain(&p).chain(&q).all(|v| v.is_finite()) {
+            return None;
         }
         Some(Self {
             n,
@@ -210,6 +215,11 @@ impl ActiveSet {
         let cap = self.cap;
         let m = self.working.len();
         for i in self.factored..m {
+            if i >= cap {
+                // More rows than the factor holds: some must depend on the others.
+                self.factored = i;
+                return false;
+            }
             let ri = self.working[i];
             for j in 0..=i {
                 let mut x = self.inner(ri, self.working[j]);
@@ -220,7 +230,8 @@ impl ActiveSet {
                     self.s[i * cap + j] = x / self.s[j * cap + j];
                 } else {
                     let diag = self.inner(ri, ri);
-                    if x <= 1e-10 * diag || x <= 0.0 {
+                    // Written so a NaN pivot counts as dependent too.
+                    if !(x > 1e-10 * diag && x > 0.0) {
                         self.factored = i;
                         return false;
                     }

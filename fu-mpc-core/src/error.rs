@@ -60,3 +60,10 @@ pub(crate) fn invalid<T>(what: &'static str, value: f64, reason: &'static str) -
         reason,
     })
 }
+
+/// [`CoreError::InvalidConfig`] for a count above its limit.
+pub(crate) fn too_large<T>(what: &'static str, count: usize, reason: &'static str) -> Result<T> {
+    // Counts far above 2^53 round, which an error message can bear.
+    #[allow(clippy::cast_precision_loss)]
+    invalid(what, count as f64, reason)
+}

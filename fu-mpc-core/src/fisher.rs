@@ -6,7 +6,7 @@ use lidar_kinematics::{KinematicChain, LidarSensor};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::error::invalid;
+use crate::error::{invalid, too_large};
 use crate::fov_gap::FovGap;
 use crate::knn::map_neighbours;
 use crate::{PeriodicPwl, Result};
@@ -38,11 +38,15 @@ impl FisherConfig {
     /// Checks every setting.
     ///
     /// # Errors
-    /// [`CoreError::InvalidConfig`](crate::CoreError::InvalidConfig) for no candidates, fewer than 3 neighbours, or ε that is not
+    /// [`CoreError::InvalidConfig`](crate::CoreError::InvalidConfig) for no candidates or more
+    /// than [`MAX_KNOTS`](crate::MAX_KNOTS), fewer than 3 neighbours, or ε that is not
     /// positive and finite.
     pub fn validate(&self) -> Result<()> {
         if self.candidates == 0 {
             return invalid("candidates", 0.0, "need at least one candidate angle");
+        }
+        if self.candidates > crate::MAX_KNOTS {
+            return too_large("candidates", self.candidates, "at most MAX_KNOTS");
         }
         check_neighbours(self.neighbours)?;
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {

@@ -70,6 +70,15 @@ impl Grid {
         } else {
             1.0
         };
+        if !(cell.is_finite() && cell > 0.0) {
+            // A volume that underflows (extents near 1e-200) or overflows: one cell as wide
+            // as the cloud, or a unit cell.
+            cell = if largest.is_finite() && largest > 0.0 {
+                largest
+            } else {
+                1.0
+            };
+        }
         let max_cells = 8.0 * n + 64.0;
         let mut dims = [1usize; 3];
         for _ in 0..64 {
@@ -277,7 +286,9 @@ impl Grid {
                     } else {
                         self.cell * self.cell
                     };
-                    if tau > 1e300 {
+                    // A NaN or non-positive threshold (cells of extreme size) would never
+                    // grow: take every candidate instead.
+                    if !(tau > 0.0 && tau <= 1e300) {
                         tau = f64::INFINITY;
                     }
                 }
@@ -477,6 +488,40 @@ mod tests {
             let want: Vec<Vec<usize>> =
                 brute(&points, k.min(points.len())).iter().map(|v| sorted(v)).collect();
             prop_assert_eq!(got, want);
+        }
+    }
+
+    /// Clouds whose box volume underflows or whose extents overflow still get the exact
+    /// neighbours (the cell size once came out NaN or zero and the search never ended).
+    #[test]
+    fn extreme_extents_end_with_the_exact_neighbours() {
+        let clouds = [
+            vec![
+                [0.0, 0.0, 0.0],
+                [1e-200, 0.0, 0.0],
+                [0.0, 1e-200, 0.0],
+                [0.0, 0.0, 1e-200],
+            ],
+            vec![[0.0; 3], [0.0; 3], [0.0; 3], [5e-324, 0.0, 0.0]],
+            vec![
+                [-1e308, 0.0, 0.0],
+                [1e308, 1.0, 0.0],
+                [0.0, -1e308, 2.0],
+                [3.0, 1e308, 1e308],
+            ],
+            vec![
+                [1e-160, 2e-160, 0.0],
+                [3e-160, 0.0, 1e-160],
+                [0.0, 0.0, 0.0],
+                [1e-160; 3],
+            ],
+        ];
+        for points in &clouds {
+            for k in 1..=points.len() {
+                let got = map_neighbours(points, k, sorted);
+                let want: Vec<Vec<usize>> = brute(points, k).iter().map(|v| sorted(v)).collect();
+                assert_eq!(got, want, "{points:?}, k = {k}");
+            }
         }
     }
 }

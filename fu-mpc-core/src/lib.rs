@@ -53,6 +53,17 @@ pub use predict::{PredictedStep, predict_into};
 pub use pwl::PeriodicPwl;
 pub use utility::{FrontierTarget, UtilityConfig, frontier_surrogates};
 
+/// Most steps a controller's horizon may have: 500 (50 s at the default Δt). The dedicated QP
+/// solver stores about 7N² numbers per proximal level, 14 MB each at this size.
+pub const MAX_HORIZON: usize = 500;
+
+/// Most knots a cost table may have (motor angles 0.022° apart): settings above it would only
+/// cost memory, N_c numbers per table.
+pub const MAX_KNOTS: usize = 1 << 14;
+
+/// Most iterations a solver's settings may ask for.
+pub const MAX_ITERATIONS: usize = 100_000;
+
 /// The README's example, compiled and run as a doctest.
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]

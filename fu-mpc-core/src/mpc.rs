@@ -4,7 +4,7 @@ use lidar_kinematics::{KinematicChain, MotorLimits, MotorModel};
 
 use crate::active_set::ActiveSet;
 use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
-use crate::error::invalid;
+use crate::error::{invalid, too_large};
 use crate::qp::StepQp;
 use crate::utility::frontier_surrogates;
 use crate::{CoreError, PeriodicPwl, PredictedStep, Result, UtilityConfig, predict_into};
@@ -81,13 +81,21 @@ impl Default for MpcConfig {
 }
 
 impl MpcConfig {
-    /// Checks every setting.
+    /// Checks every setting: the horizon in 1..=[`MAX_HORIZON`](crate::MAX_HORIZON), the knots
+    /// in 1..=[`MAX_KNOTS`](crate::MAX_KNOTS), at most
+    /// [`MAX_ITERATIONS`](crate::MAX_ITERATIONS) iterations, and the numbers below.
     ///
     /// # Errors
     /// [`CoreError::InvalidConfig`] naming the first setting out of range.
     pub fn validate(&self) -> Result<()> {
         if self.horizon == 0 {
             return invalid("horizon", 0.0, "must be at least 1");
+        }
+        if self.horizon > crate::MAX_HORIZON {
+            return too_large("horizon", self.horizon, "at most MAX_HORIZON steps");
+        }
+        if self.iterations > crate::MAX_ITERATIONS {
+            return too_large("iterations", self.iterations, "at most MAX_ITERATIONS");
         }
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return invalid("dt", self.dt, "must be positive and finite [s]");
@@ -106,6 +114,9 @@ impl MpcConfig {
         }
         if self.knots == 0 {
             return invalid("knots", 0.0, "must be at least 1");
+        }
+        if self.knots > crate::MAX_KNOTS {
+            return too_large("knots", self.knots, "at most MAX_KNOTS");
         }
         self.utility.validate()
     }

@@ -5,7 +5,7 @@ use core::f64::consts::{PI, TAU};
 use lidar_kinematics::KinematicChain;
 use nalgebra::{Isometry3, Point3};
 
-use crate::error::invalid;
+use crate::error::{invalid, too_large};
 use crate::{CoreError, PeriodicPwl, Result};
 
 /// A frontier target for the scan controller: a cluster centre and its intensity score.
@@ -78,8 +78,9 @@ impl UtilityConfig {
 /// not depend on the scale of the scores.
 ///
 /// # Errors
-/// An invalid `config`, no knots, a NaN or infinite target or pose, a negative score, or
-/// scores so large that their sum overflows. On error `out` may hold partial tables.
+/// An invalid `config`, no knots or more than [`MAX_KNOTS`](crate::MAX_KNOTS), a NaN or
+/// infinite target or pose (translation or rotation), a negative score, or scores so large
+/// that their sum overflows. On error `out` may hold partial tables.
 pub fn frontier_surrogates(
     chain: &KinematicChain,
     poses: &[Isometry3<f64>],
@@ -93,6 +94,9 @@ pub fn frontier_surrogates(
         return Err(CoreError::Empty {
             what: "surrogate knots",
         });
+    }
+    if knots > crate::MAX_KNOTS {
+        return too_large("surrogate knots", knots, "at most MAX_KNOTS");
     }
     for t in targets {
         if !(t.center.iter().all(|v| v.is_finite()) && t.score.is_finite()) {
@@ -121,7 +125,9 @@ pub fn frontier_surrogates(
     }
     for (pose, table) in poses.iter().zip(out.iter_mut()) {
         let values = table.values_mut();
-        if !pose.translation.vector.iter().all(|v| v.is_finite()) {
+        if !(pose.translation.vector.iter().all(|v| v.is_finite())
+            && pose.rotation.coords.iter().all(|v| v.is_finite()))
+        {
             return Err(CoreError::NonFinite {
                 what: "reference pose",
             });

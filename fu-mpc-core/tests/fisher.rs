@@ -133,6 +133,21 @@ fn fallbacks_and_errors() {
     assert_eq!(t2.skipped(), 2);
     assert_eq!(t2.points_used(), plane.len());
     assert_eq!(t2.cost(), t.cost());
+    // More candidate angles than the documented limit is a configuration error.
+    let too_many = FisherConfig {
+        candidates: fu_mpc_core::MAX_KNOTS + 1,
+        ..cfg
+    };
+    assert!(FisherTable::build(&plane, &id, &chain, &sensor(), &too_many).is_err());
+    // A cloud whose box volume underflows still gets its table (its normals' search ends).
+    let tiny = [
+        Point3::new(3.0, 0.0, 0.0),
+        Point3::new(3.0 + 1e-200, 0.0, 0.0),
+        Point3::new(3.0, 1e-200, 0.0),
+        Point3::new(3.0, 0.0, 1e-200),
+    ];
+    let t3 = FisherTable::build(&tiny, &id, &chain, &sensor(), &cfg).unwrap();
+    assert_eq!(t3.points_used(), 4);
     // Bad settings.
     for c in [
         FisherConfig {

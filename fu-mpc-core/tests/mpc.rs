@@ -355,3 +355,97 @@ fn bad_inputs_are_errors() {
         0.0
     );
 }
+
+/// Counts above the documented limits are configuration errors, not allocations.
+#[test]
+fn counts_above_the_limits_are_errors() {
+    let chain = KinematicChain::default();
+    for bad in [
+        MpcConfig {
+            horizon: fu_mpc_core::MAX_HORIZON + 1,
+            ..MpcConfig::default()
+        },
+        MpcConfig {
+            horizon: usize::MAX,
+            ..MpcConfig::default()
+        },
+        MpcConfig {
+            knots: fu_mpc_core::MAX_KNOTS + 1,
+            ..MpcConfig::default()
+        },
+        MpcConfig {
+            iterations: usize::MAX,
+            ..MpcConfig::default()
+        },
+    ] {
+        assert!(FuMpc::new(bad, chain).is_err(), "{bad:?}");
+    }
+    assert!(
+        FuMpc::new(
+            MpcConfig {
+                horizon: fu_mpc_core::MAX_HORIZON,
+                knots: fu_mpc_core::MAX_KNOTS,
+                ..MpcConfig::default()
+            },
+            chain
+        )
+        .is_ok()
+    );
+    let refs = reference(20, Vector3::zeros(), 0.0, 0.1);
+    let mut out = Vec::new();
+    assert!(
+        fu_mpc_core::frontier_surrogates(
+            &chain,
+            &refs,
+            &[],
+            &fu_mpc_core::UtilityConfig::default(),
+            usize::MAX,
+            &mut out
+        )
+        .is_err()
+    );
+    // A rotation that is not finite is an error like a translation that is not.
+    let mut bad_rotation = refs.clone();
+    bad_rotation[3].rotation =
+        UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(f64::NAN, 0.0, 0.0, 0.0));
+    assert!(
+        fu_mpc_core::frontier_surrogates(
+            &chain,
+            &bad_rotation,
+            &[],
+            &fu_mpc_core::UtilityConfig::default(),
+            72,
+            &mut out
+        )
+        .is_err()
+    );
+}
+
+/// Extreme but finite settings with no acceleration allowed (every bound active at once):
+/// the dedicated solver's tables overflow, and the update still returns a feasible command.
+#[test]
+fn extreme_settings_still_give_a_feasible_command() {
+    let chain = KinematicChain::default();
+    let limits = lidar_kinematics::MotorLimits::try_new(-PI, PI, 0.0).unwrap();
+    for (gamma, dt) in [(1e308, 0.1), (0.01, 1e155), (1e308, 1e155)] {
+        let cfg = MpcConfig {
+            gamma,
+            dt,
+            limits,
+            ..MpcConfig::default()
+        };
+        let mut mpc = FuMpc::new(cfg, chain).unwrap();
+        let refs = reference(cfg.horizon, Vector3::zeros(), 0.0, 0.1);
+        let input = ScanInput {
+            motor: MotorState::new(0.0, 4.0),
+            reference: &refs,
+            targets: &[FrontierTarget {
+                center: Point3::new(3.0, 1.0, 0.0),
+                score: 5.0,
+            }],
+            fisher: None,
+        };
+        let cmd = mpc.command(&input).unwrap();
+        assert_eq!(cmd.acceleration, 0.0, "γ = {gamma}, Δt = {dt}");
+    }
+}

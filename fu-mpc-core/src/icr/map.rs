@@ -6,7 +6,7 @@ use faer::{Mat, MatRef, Par};
 use nalgebra::Point3;
 
 use crate::Result;
-use crate::error::{CoreError, invalid};
+use crate::error::{CoreError, invalid, too_large};
 
 /// The prior information of the map cells.
 #[derive(Debug, Clone)]
@@ -53,6 +53,10 @@ fn check_cells(cells: &[Point3<f64>]) -> Result<()> {
 }
 
 impl InformationMap {
+    /// Most cells of a dense prior ([`InformationMap::squared_exponential`]): 16,384, whose
+    /// n × n covariance takes 2 GiB.
+    pub const MAX_DENSE_CELLS: usize = 1 << 14;
+
     /// Independent cells with prior information `information[j]` = 1/σ₀ⱼ² (the paper's
     /// Σ₀ = diag(100) is 0.01 everywhere).
     ///
@@ -80,10 +84,12 @@ impl InformationMap {
 
     /// A correlated prior: Σ₀ᵢⱼ = s² exp(−‖pᵢ − pⱼ‖² / (2ℓ²)) + ε δᵢⱼ (a squared-exponential
     /// kernel over the cell positions, `variance` s², `length_scale` ℓ \[m\], `jitter` ε), and
-    /// Y₀ = Σ₀⁻¹ by Cholesky. O(n³): meant for maps of up to a few thousand cells.
+    /// Y₀ = Σ₀⁻¹ by Cholesky. O(n³) time and n² memory: meant for maps of up to a few thousand
+    /// cells, and refused above [`InformationMap::MAX_DENSE_CELLS`].
     ///
     /// # Errors
-    /// As [`InformationMap::diagonal`] for the cells; [`CoreError::InvalidConfig`] for a
+    /// As [`InformationMap::diagonal`] for the cells; [`CoreError::InvalidConfig`] for more
+    /// than [`InformationMap::MAX_DENSE_CELLS`] cells, a
     /// non-positive variance or length scale or a negative jitter;
     /// [`CoreError::NotPositiveDefinite`] if Σ₀ is singular in floating point (raise the
     /// jitter).
@@ -94,6 +100,13 @@ impl InformationMap {
         jitter: f64,
     ) -> Result<Self> {
         check_cells(&cells)?;
+        if cells.len() > Self::MAX_DENSE_CELLS {
+            return too_large(
+                "cells",
+                cells.len(),
+                "at most MAX_DENSE_CELLS for a dense prior",
+            );
+        }
         if !(variance.is_finite() && variance > 0.0) {
             return invalid("variance", variance, "must be positive and finite");
         }
@@ -354,6 +367,12 @@ mod tests {
         assert!(InformationMap::diagonal(line(2), vec![1.0]).is_err());
         assert!(InformationMap::diagonal(line(2), vec![1.0, 0.0]).is_err());
         assert!(InformationMap::squared_exponential(line(3), -1.0, 1.0, 0.0).is_err());
+        // Too many cells for a dense prior: refused before the n² allocation.
+        let many = line(InformationMap::MAX_DENSE_CELLS + 1);
+        assert!(matches!(
+            InformationMap::squared_exponential(many, 1.0, 1.0, 0.0),
+            Err(CoreError::InvalidConfig { .. })
+        ));
         // Two coincident cells and no jitter: Σ₀ is singular.
         let twins = vec![Point3::origin(), Point3::origin()];
         assert!(matches!(

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use super::fov::{FovSdf, Probit};
 use super::map::{InformationMap, Prior};
 use crate::Result;
-use crate::error::{CoreError, invalid};
+use crate::error::{CoreError, invalid, too_large};
 
 /// Settings of iCR. The defaults are those of the paper's evaluation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,13 +44,20 @@ impl Default for IcrConfig {
 }
 
 impl IcrConfig {
-    /// Checks every setting.
+    /// Checks every setting (the horizon at most [`MAX_HORIZON`](crate::MAX_HORIZON), the
+    /// iterations at most [`MAX_ITERATIONS`](crate::MAX_ITERATIONS)).
     ///
     /// # Errors
     /// [`CoreError::InvalidConfig`] naming the first bad one.
     pub fn validate(&self) -> Result<()> {
         if self.horizon == 0 {
             return invalid("horizon", 0.0, "need at least one step");
+        }
+        if self.horizon > crate::MAX_HORIZON {
+            return too_large("horizon", self.horizon, "at most MAX_HORIZON steps");
+        }
+        if self.iterations > crate::MAX_ITERATIONS {
+            return too_large("iterations", self.iterations, "at most MAX_ITERATIONS");
         }
         if !(self.tau.is_finite() && self.tau > 0.0) {
             return invalid("tau", self.tau, "must be positive and finite");
@@ -798,6 +805,14 @@ mod tests {
                 ..d()
             },
             IcrConfig { step, ..d() },
+            IcrConfig {
+                horizon: usize::MAX,
+                ..d()
+            },
+            IcrConfig {
+                iterations: usize::MAX,
+                ..d()
+            },
         ] {
             assert!(Icr::new(cfg, fov).is_err(), "{cfg:?}");
         }

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::fov::Probit;
 use crate::Result;
 use crate::controller::{ScanCommand, ScanController, ScanInput, ScanStatus};
-use crate::error::{CoreError, invalid};
+use crate::error::{CoreError, invalid, too_large};
 use crate::fisher::{check_neighbours, normals};
 use crate::fov_gap::FovGap;
 
@@ -58,13 +58,20 @@ impl Default for IcrScanConfig {
 }
 
 impl IcrScanConfig {
-    /// Checks every setting.
+    /// Checks every setting (the horizon at most [`MAX_HORIZON`](crate::MAX_HORIZON), the
+    /// iterations at most [`MAX_ITERATIONS`](crate::MAX_ITERATIONS)).
     ///
     /// # Errors
     /// [`CoreError::InvalidConfig`] naming the first bad one.
     pub fn validate(&self) -> Result<()> {
         if self.horizon == 0 {
             return invalid("horizon", 0.0, "need at least one step");
+        }
+        if self.horizon > crate::MAX_HORIZON {
+            return too_large("horizon", self.horizon, "at most MAX_HORIZON steps");
+        }
+        if self.iterations > crate::MAX_ITERATIONS {
+            return too_large("iterations", self.iterations, "at most MAX_ITERATIONS");
         }
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return invalid("dt", self.dt, "must be positive and finite");
@@ -583,10 +590,21 @@ mod tests {
             ..IcrScanConfig::default()
         };
         assert!(IcrScan::new(cfg, KinematicChain::default(), LidarSensor::mid360()).is_err());
-        let cfg = IcrScanConfig {
-            horizon: 0,
-            ..IcrScanConfig::default()
-        };
-        assert!(IcrScan::new(cfg, KinematicChain::default(), LidarSensor::mid360()).is_err());
+        for cfg in [
+            IcrScanConfig {
+                horizon: 0,
+                ..IcrScanConfig::default()
+            },
+            IcrScanConfig {
+                horizon: usize::MAX,
+                ..IcrScanConfig::default()
+            },
+            IcrScanConfig {
+                iterations: crate::MAX_ITERATIONS + 1,
+                ..IcrScanConfig::default()
+            },
+        ] {
+            assert!(IcrScan::new(cfg, KinematicChain::default(), LidarSensor::mid360()).is_err());
+        }
     }
 }
