@@ -29,6 +29,15 @@ pub enum FrontierError {
         /// The largest supported count.
         max: u32,
     },
+    /// Bounds and resolution that need more blocks of 8 × 8 × 8 cells than
+    /// [`MAX_BLOCKS`](crate::MAX_BLOCKS): the map keeps a directory entry for every block.
+    #[error("the map needs {blocks} blocks of 8 x 8 x 8 cells; at most {max} are supported")]
+    TooManyBlocks {
+        /// Blocks needed to cover the bounds.
+        blocks: u64,
+        /// The largest supported count.
+        max: u64,
+    },
     /// A NaN or infinite input that cannot be skipped (a sensor origin, a query point).
     #[error("{what} is not finite")]
     NonFinite {

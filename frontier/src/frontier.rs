@@ -282,7 +282,8 @@ impl Frontiers {
     /// Brings the frontier up to date after `map` absorbed `update` (the value
     /// [`VoxelMap::insert_frame`] returned). Updates must be passed in order, none skipped;
     /// after a skipped one, call [`Frontiers::rebuild`]. A frontier that tracks a map with
-    /// another grid size is rebuilt from `map` instead.
+    /// another grid size is rebuilt from `map` instead. Changes of cells outside `map`'s grid,
+    /// which `insert_frame` never reports, are ignored.
     pub fn update(&mut self, map: &VoxelMap, update: &FrameUpdate) -> FrontierDelta {
         let grid = map.grid();
         if self.owners.dims() != grid.dims() {
@@ -295,9 +296,17 @@ impl Frontiers {
             }
         }
         // The changed cells and their face neighbours, each once, in a deterministic order.
+        // Cells outside the grid would overflow the box below and alias other cells' keys.
+        let [nx, ny, nz] = grid.dims();
+        let changed = || {
+            update
+                .changed
+                .iter()
+                .filter(move |ch| ch.cell.x < nx && ch.cell.y < ny && ch.cell.z < nz)
+        };
         let mut lo = [u32::MAX; 3];
         let mut hi = [0u32; 3];
-        for ch in &update.changed {
+        for ch in changed() {
             for (k, v) in [ch.cell.x, ch.cell.y, ch.cell.z].into_iter().enumerate() {
                 lo[k] = lo[k].min(v.saturating_sub(1));
                 hi[k] = hi[k].max(v + 1);
@@ -305,7 +314,7 @@ impl Frontiers {
         }
         let mut seen = CellSet::empty(lo, hi);
         let mut keys = Vec::with_capacity(2 * update.changed.len());
-        for ch in &update.changed {
+        for ch in changed() {
             if seen.insert(ch.cell) {
                 keys.push(ch.cell.key());
             }

@@ -48,10 +48,11 @@ mod viewpoint;
 pub use error::{FrontierError, Result};
 pub use frontier::{Cluster, ClusterId, FrontierConfig, FrontierDelta, Frontiers};
 pub use grid::{Bounds, Cell, Grid, MAX_CELLS_PER_AXIS};
-pub use map::{CellBox, CellChange, CellState, FrameUpdate, MapConfig, VoxelMap};
+pub use map::{CellBox, CellChange, CellState, FrameUpdate, MAX_BLOCKS, MapConfig, VoxelMap};
 pub use viewpoint::{
-    ElevationBand, FieldOfView, Omnidirectional, Plan, Target, ViewpointConfig, cell_visible,
-    plan_targets, plan_targets_among, sample_candidates, viewpoint_valid, visibility_ratio,
+    ElevationBand, FieldOfView, MAX_CANDIDATES, Omnidirectional, Plan, Target, ViewpointConfig,
+    cell_visible, plan_targets, plan_targets_among, sample_candidates, viewpoint_valid,
+    visibility_ratio,
 };
 
 /// The README's example, compiled and run as a doctest.

@@ -20,6 +20,14 @@ const MAX_FRAME_WORDS: usize = 1 << 21;
 /// Frames of at least this many rays are marked by two threads.
 const PARALLEL_RAYS: usize = 4096;
 
+/// Largest number of 8 × 8 × 8-cell blocks a [`VoxelMap`] may cover: 2^30 (2^26 where pointers
+/// are narrower than 64 bits).
+///
+/// The map keeps a 4-byte directory entry for every block of its bounds, allocated up front
+/// (4 GiB at the limit, and as much again for a [`Frontiers`](crate::Frontiers) tracking it):
+/// 2^30 blocks are 2^39 cells, e.g. 5 km × 5 km × 100 m at 0.2 m.
+pub const MAX_BLOCKS: u64 = if usize::BITS >= 64 { 1 << 30 } else { 1 << 26 };
+
 /// Log-odds are stored as `i8` in units of 1/32: one byte per cell, probabilities up to
 /// 1 − 0.019 (log-odds ±3.97), steps of 0.03 in log-odds.
 const SCALE: f64 = 32.0;
@@ -269,14 +277,25 @@ impl VoxelMap {
     /// An empty (all unknown) map over `bounds`.
     ///
     /// # Errors
-    /// The first invalid setting of `config` (see [`MapConfig::validate`]), or
-    /// [`FrontierError::TooManyCells`].
+    /// The first invalid setting of `config` (see [`MapConfig::validate`]),
+    /// [`FrontierError::TooManyCells`] above [`MAX_CELLS_PER_AXIS`](crate::MAX_CELLS_PER_AXIS)
+    /// cells along an axis, or [`FrontierError::TooManyBlocks`] above [`MAX_BLOCKS`] blocks.
     pub fn new(bounds: Bounds, config: MapConfig) -> Result<Self> {
         config.validate()?;
         let grid = Grid::new(bounds, config.resolution)?;
         let dims = grid.dims();
         let block_dims = dims.map(|n| n.div_ceil(BLOCK_EDGE));
-        let blocks = block_dims.iter().map(|&b| b as usize).product::<usize>();
+        // At most 2^17 blocks per axis: the product fits u64, and the directory must fit memory.
+        let blocks = block_dims.iter().map(|&b| u64::from(b)).product::<u64>();
+        if blocks > MAX_BLOCKS {
+            return Err(FrontierError::TooManyBlocks {
+                blocks,
+                max: MAX_BLOCKS,
+            });
+        }
+        // Below MAX_BLOCKS, so the cast is exact.
+        #[allow(clippy::cast_possible_truncation)]
+        let blocks = blocks as usize;
         Ok(Self {
             model: Model {
                 hit: quantize(logit(config.prob_hit)),
@@ -1312,6 +1331,23 @@ mod tests {
                     });
                     proptest::prop_assert_eq!(m.occluded(&from, target, unknown), blocked);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn occlusion_from_outside_the_bounds_stays_in_the_directory() {
+        let m = map();
+        let target = Cell::new(0, 7, 0);
+        for from in [
+            Point3::new(1e308, 1.5, 0.1),
+            Point3::new(f64::NAN, 1.5, 0.1),
+            Point3::new(-1e300, 1e300, 0.1),
+            Point3::new(-3.0, 20.0, 9.0),
+        ] {
+            for unknown in [false, true] {
+                let _ = m.occluded(&from, target, unknown);
+                let _ = m.occluded(&from, Cell::new(u32::MAX, 0, u32::MAX), unknown);
             }
         }
     }

@@ -40,7 +40,8 @@ pub(crate) struct Owners {
 }
 
 impl Owners {
-    /// Empties the store and sizes it for a grid of `dims` cells.
+    /// Empties the store and sizes it for a grid of `dims` cells: a map's grid, whose block
+    /// count [`VoxelMap::new`] bounds by [`MAX_BLOCKS`](crate::MAX_BLOCKS).
     pub(crate) fn reset(&mut self, dims: [u32; 3]) {
         self.dims = dims;
         self.block_dims = dims.map(|n| n.div_ceil(1 << BLOCK_BITS));

@@ -11,7 +11,9 @@ use crate::map::{BLOCK_BITS, BLOCK_CELLS, BLOCK_MASK};
 /// Both end points must be finite and inside the grid's bounds (points on the upper bound
 /// belong to the last cell). The walk takes exactly one step per cell boundary between the two
 /// end cells, so it always ends in the cell of the end point, even when rounding puts a
-/// crossing a hair early or late.
+/// crossing a hair early or late. Outside that contract it still stays in the grid: finite
+/// points outside the bounds walk between their clamped cells, and a point whose grid
+/// coordinates are not finite gives a walk of the first cell alone.
 pub(crate) struct Walk {
     /// Current cell, end cell, step direction, next crossing and crossing spacing, per axis.
     pub(crate) x: u32,
@@ -33,7 +35,10 @@ impl Walk {
         let ga = grid.grid_coords(a);
         let gb = grid.grid_coords(b);
         let start = grid.clamp_cell(ga);
-        let end = grid.clamp_cell(gb);
+        // NaN crossing times would step axes that are already in their end cell, out of the
+        // grid.
+        let finite = ga.iter().chain(gb.iter()).all(|v| v.is_finite());
+        let end = if finite { grid.clamp_cell(gb) } else { start };
         let (s, e) = ([start.x, start.y, start.z], [end.x, end.y, end.z]);
         let d = gb - ga;
         let mut t = [f64::INFINITY; 3];
@@ -350,6 +355,48 @@ mod tests {
             }
             prop_assert_eq!(cells.first().copied(), g.cell_of(&a));
             prop_assert_eq!(cells.last().copied(), g.cell_of(&b));
+        }
+    }
+
+    #[test]
+    fn points_outside_the_contract_stay_in_the_grid() {
+        let g = grid();
+        let dims = g.dims();
+        let inside = |c: Cell| c.x < dims[0] && c.y < dims[1] && c.z < dims[2];
+        let p = Point3::new(0.3, 0.3, 0.3);
+        // Grid coordinates that are not finite: the first cell alone.
+        for q in [
+            Point3::new(1e308, 0.5, 0.1),
+            Point3::new(-1e308, 0.5, 0.1),
+            Point3::new(f64::NAN, 0.5, 0.1),
+            Point3::new(0.3, f64::INFINITY, 0.1),
+        ] {
+            for (a, b) in [(q, p), (p, q)] {
+                let mut cells = Vec::new();
+                assert!(traverse(&g, &a, &b, |c| {
+                    cells.push(c);
+                    true
+                }));
+                assert_eq!(cells.len(), 1, "{a:?} {b:?}");
+                assert!(inside(cells[0]));
+            }
+        }
+        // Finite points outside the bounds walk between their clamped cells.
+        for q in [
+            Point3::new(1e300, -1e300, 5.0),
+            Point3::new(-7.0, 0.5, -3.0),
+            Point3::new(4.0, 9.0, 0.7),
+        ] {
+            for (a, b) in [(q, p), (p, q)] {
+                let mut last = None;
+                assert!(traverse(&g, &a, &b, |c| {
+                    assert!(inside(c), "{c:?}");
+                    last = Some(c);
+                    true
+                }));
+                let end = g.clamp_cell(g.grid_coords(&b));
+                assert_eq!(last, Some(end));
+            }
         }
     }
 

@@ -52,19 +52,24 @@ impl FieldOfView for ElevationBand {
     }
 }
 
+/// Largest number of candidate viewpoints per cluster, `radii.len() × elevations.len() ×
+/// azimuths` (2^16; the default samples 90): [`ViewpointConfig::validate`] rejects more, and
+/// [`sample_candidates`] returns none for more.
+pub const MAX_CANDIDATES: usize = 1 << 16;
+
 /// Settings of viewpoint sampling, visibility and dynamic clustering.
 ///
 /// Candidates for a cluster with centre c and normal n are c + r·d for every radius r and
 /// every direction d at an elevation e above the plane normal to n (e = π/2 is along n) and
 /// one of `azimuths` equally spaced azimuths around n: `radii.len() × elevations.len() ×
-/// azimuths` candidates in the hemisphere of n.
+/// azimuths` candidates in the hemisphere of n, at most [`MAX_CANDIDATES`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewpointConfig {
     /// Sampling distances from the cluster centre \[m\]; default 1.5, 2.5, 3.5.
     pub radii: Vec<f64>,
     /// Elevations above the plane normal to n \[rad\], each in [0, π/2]; default 15°, 40°, 65°.
     pub elevations: Vec<f64>,
-    /// Azimuths around n; default 10.
+    /// Azimuths around n, at most [`MAX_CANDIDATES`]; default 10.
     pub azimuths: usize,
     /// Smallest clearance to occupied cells \[m\]; default 0.5.
     pub safety_distance: f64,
@@ -107,8 +112,9 @@ impl ViewpointConfig {
     ///
     /// # Errors
     /// [`FrontierError::InvalidConfig`] naming the first setting out of range: empty sampling
-    /// sets, radii or ranges that are not positive and finite, elevations outside [0, π/2],
-    /// r0 outside (0, 1], or negative or NaN weights.
+    /// sets, more than [`MAX_CANDIDATES`] azimuths or candidates, radii or ranges that are not
+    /// positive and finite, elevations outside [0, π/2], r0 outside (0, 1], or negative or
+    /// NaN weights.
     pub fn validate(&self) -> Result<()> {
         let bad = |what, value, reason| {
             Err(FrontierError::InvalidConfig {
@@ -123,6 +129,23 @@ impl ViewpointConfig {
                 "radii/elevations/azimuths",
                 0.0,
                 "need at least one of each",
+            );
+        }
+        // Only in the messages: exact below 2^53.
+        #[allow(clippy::cast_precision_loss)]
+        let count = |n: usize| n as f64;
+        if self.azimuths > MAX_CANDIDATES {
+            return bad(
+                "azimuths",
+                count(self.azimuths),
+                "must be at most MAX_CANDIDATES (65536)",
+            );
+        }
+        if self.candidates().is_none() {
+            return bad(
+                "radii.len() x elevations.len() x azimuths",
+                count(self.radii.len()) * count(self.elevations.len()) * count(self.azimuths),
+                "must be at most MAX_CANDIDATES (65536)",
             );
         }
         if let Some(r) = self.radii.iter().find(|r| !pos(**r)) {
@@ -159,6 +182,15 @@ impl ViewpointConfig {
         }
         Ok(())
     }
+
+    /// Candidates per cluster, `None` above [`MAX_CANDIDATES`].
+    fn candidates(&self) -> Option<usize> {
+        self.radii
+            .len()
+            .checked_mul(self.elevations.len())?
+            .checked_mul(self.azimuths)
+            .filter(|&n| n <= MAX_CANDIDATES)
+    }
 }
 
 /// One observation target for the tour planner: a dynamic cluster of frontier clusters that
@@ -193,8 +225,22 @@ pub struct Plan {
 }
 
 /// Whether the centre of `cell` is seen from `from`: within range, inside the field of view
-/// and not occluded (voxel ray cast).
+/// and not occluded (voxel ray cast). `false` for a viewpoint outside the map bounds or not
+/// finite, and for a `config` that fails [`ViewpointConfig::validate`].
 pub fn cell_visible(
+    map: &VoxelMap,
+    from: &Point3<f64>,
+    cell: Cell,
+    fov: &impl FieldOfView,
+    config: &ViewpointConfig,
+) -> bool {
+    map.bounds().contains(from)
+        && config.validate().is_ok()
+        && in_view(map, from, cell, fov, config)
+}
+
+/// [`cell_visible`] for a viewpoint inside the bounds and a valid `config`.
+fn in_view(
     map: &VoxelMap,
     from: &Point3<f64>,
     cell: Cell,
@@ -208,7 +254,7 @@ pub fn cell_visible(
 }
 
 /// The visibility ratio (4): the share of `cluster`'s cells seen from `from`; 0 for a viewpoint
-/// outside the map or not finite.
+/// outside the map or not finite, and for a `config` that fails [`ViewpointConfig::validate`].
 pub fn visibility_ratio(
     map: &VoxelMap,
     cluster: &Cluster,
@@ -216,13 +262,13 @@ pub fn visibility_ratio(
     fov: &impl FieldOfView,
     config: &ViewpointConfig,
 ) -> f64 {
-    if !map.bounds().contains(from) || cluster.cells().is_empty() {
+    if !map.bounds().contains(from) || cluster.cells().is_empty() || config.validate().is_err() {
         return 0.0;
     }
     let seen = cluster
         .cells()
         .iter()
-        .filter(|c| cell_visible(map, from, **c, fov, config))
+        .filter(|c| in_view(map, from, **c, fov, config))
         .count();
     ratio(seen, cluster.cells().len())
 }
@@ -234,8 +280,12 @@ fn ratio(a: usize, b: usize) -> f64 {
     r
 }
 
-/// The candidate viewpoints of a cluster, before validation, in the hemisphere of its normal.
+/// The candidate viewpoints of a cluster, before validation, in the hemisphere of its normal;
+/// none when `config` asks for more than [`MAX_CANDIDATES`].
 pub fn sample_candidates(cluster: &Cluster, config: &ViewpointConfig) -> Vec<Point3<f64>> {
+    let Some(count) = config.candidates() else {
+        return Vec::new();
+    };
     let n = cluster.normal();
     let helper = if n.z.abs() < 0.9 {
         Vector3::z()
@@ -244,8 +294,7 @@ pub fn sample_candidates(cluster: &Cluster, config: &ViewpointConfig) -> Vec<Poi
     };
     let u = n.cross(&helper).normalize();
     let w = n.cross(&u);
-    let mut out =
-        Vec::with_capacity(config.radii.len() * config.elevations.len() * config.azimuths);
+    let mut out = Vec::with_capacity(count);
     for &r in &config.radii {
         for &e in &config.elevations {
             for k in 0..config.azimuths {
@@ -293,7 +342,8 @@ struct Bits {
     seen: u64,
 }
 
-/// Pooled candidates and lazily evaluated visibility.
+/// Pooled candidates and lazily evaluated visibility. The config is valid and every
+/// candidate lies in a free cell, inside the bounds, so visibility skips those checks.
 struct Pool<'a, F> {
     map: &'a VoxelMap,
     clusters: Vec<&'a Cluster>,
@@ -371,13 +421,13 @@ impl<F: FieldOfView> Pool<'_, F> {
         let c = self.samples[i][j];
         let p = self.points[v];
         if j >= 64 {
-            return cell_visible(self.map, &p, c, self.fov, self.config);
+            return in_view(self.map, &p, c, self.fov, self.config);
         }
         let bit = 1u64 << j;
         if bits.asked & bit != 0 {
             return bits.seen & bit != 0;
         }
-        let seen = cell_visible(self.map, &p, c, self.fov, self.config);
+        let seen = in_view(self.map, &p, c, self.fov, self.config);
         bits.asked |= bit;
         if seen {
             bits.seen |= bit;
@@ -404,7 +454,7 @@ impl<F: FieldOfView> Pool<'_, F> {
         self.clusters[i]
             .cells()
             .iter()
-            .filter(|c| cell_visible(self.map, &p, **c, self.fov, self.config))
+            .filter(|c| in_view(self.map, &p, **c, self.fov, self.config))
             .count()
     }
 }
