@@ -131,7 +131,8 @@ pub fn heading_cost(
 ///
 /// # Errors
 /// [`TspError::InvalidConfig`] for bad settings, [`TspError::NonFinite`] for a non-finite
-/// velocity, [`TspError::NoSuchNode`] for unknown nodes.
+/// velocity, [`TspError::NoSuchNode`] for unknown nodes, [`TspError::TooLarge`] for more than
+/// [`CostMatrix::MAX_LEN`] nodes in all.
 ///
 /// # Example
 /// ```
@@ -164,6 +165,7 @@ pub fn cost_matrix(
         .map(|&n| graph.position(n))
         .collect::<Result<Vec<_>>>()?;
     let n = nodes.len();
+    CostMatrix::check_len(n)?;
     let mut rows = vec![vec![0.0; n]; n];
     for i in 0..n {
         let sp = graph.shortest_paths_from(nodes[i])?;

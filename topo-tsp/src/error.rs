@@ -29,10 +29,11 @@ pub enum TspError {
         /// The value.
         value: f64,
     },
-    /// An instance too large for an exact solver.
+    /// An instance too large for an exact solver, or for a [`crate::CostMatrix`] (more than
+    /// [`crate::CostMatrix::MAX_LEN`] nodes).
     #[error("{solver} handles at most {max} nodes, got {n}")]
     TooLarge {
-        /// Which solver.
+        /// Which solver, or `"CostMatrix"`.
         solver: &'static str,
         /// Its limit.
         max: usize,

@@ -19,17 +19,42 @@ pub struct CostMatrix {
 }
 
 impl CostMatrix {
+    /// The most nodes a matrix may have: 16 384, whose n² costs take 2 GiB. Larger sizes are
+    /// refused before anything is allocated, so a bad size is an error rather than an
+    /// allocation failure.
+    pub const MAX_LEN: usize = 1 << 14;
+
+    /// [`TspError::TooLarge`] when `n` exceeds [`CostMatrix::MAX_LEN`].
+    pub(crate) fn check_len(n: usize) -> Result<()> {
+        if n > Self::MAX_LEN {
+            return Err(TspError::TooLarge {
+                solver: "CostMatrix",
+                max: Self::MAX_LEN,
+                n,
+            });
+        }
+        Ok(())
+    }
+
     /// Validates and builds a matrix from rows. Diagonal entries are ignored (any value).
     ///
     /// # Errors
-    /// [`TspError::Empty`], [`TspError::NotSquare`], or [`TspError::BadCost`] for a NaN,
-    /// infinite or negative off-diagonal cost.
+    /// [`TspError::Empty`], [`TspError::TooLarge`] for more than [`CostMatrix::MAX_LEN`] rows,
+    /// [`TspError::NotSquare`], or [`TspError::BadCost`] for a NaN, infinite or negative
+    /// off-diagonal cost.
     pub fn from_rows(rows: &[Vec<f64>]) -> Result<Self> {
         let n = rows.len();
         if n == 0 {
             return Err(TspError::Empty);
         }
-        let mut data = Vec::with_capacity(n * n);
+        Self::check_len(n)?;
+        // Reserve n² only when the rows hold that many costs: short rows must not cost more
+        // memory than they occupy before their NotSquare error.
+        let mut data = if rows.iter().all(|r| r.len() == n) {
+            Vec::with_capacity(n * n)
+        } else {
+            Vec::new()
+        };
         for (i, row) in rows.iter().enumerate() {
             if row.len() != n {
                 return Err(TspError::NotSquare {
@@ -56,17 +81,45 @@ impl CostMatrix {
     }
 
     /// Builds an n × n matrix from a function of (i, j), validated as [`CostMatrix::from_rows`].
+    /// `f` is called on every (i, j), diagonal included, in row-major order, until a bad cost.
     ///
     /// # Errors
-    /// As [`CostMatrix::from_rows`].
+    /// [`TspError::Empty`] for n = 0, [`TspError::TooLarge`] for n > [`CostMatrix::MAX_LEN`]
+    /// (before `f` is called), or [`TspError::BadCost`] for the first bad off-diagonal cost.
+    ///
+    /// # Example
+    /// ```
+    /// use topo_tsp::{CostMatrix, TspError};
+    /// let m = CostMatrix::from_fn(3, |i, j| (i + j) as f64).unwrap();
+    /// assert_eq!(m.cost(2, 1), 3.0);
+    /// assert!(matches!(
+    ///     CostMatrix::from_fn(usize::MAX, |_, _| 1.0),
+    ///     Err(TspError::TooLarge { .. })
+    /// ));
+    /// ```
     pub fn from_fn(n: usize, mut f: impl FnMut(usize, usize) -> f64) -> Result<Self> {
-        let mut rows = vec![vec![0.0; n]; n];
-        for (i, row) in rows.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = f(i, j);
+        if n == 0 {
+            return Err(TspError::Empty);
+        }
+        Self::check_len(n)?;
+        let mut data = Vec::with_capacity(n * n);
+        for i in 0..n {
+            for j in 0..n {
+                let v = f(i, j);
+                if i == j {
+                    data.push(0.0);
+                } else if v.is_finite() && v >= 0.0 {
+                    data.push(v);
+                } else {
+                    return Err(TspError::BadCost {
+                        row: i,
+                        col: j,
+                        value: v,
+                    });
+                }
             }
         }
-        Self::from_rows(&rows)
+        Ok(Self { n, data })
     }
 
     /// Number of nodes n.
@@ -156,5 +209,55 @@ mod tests {
         assert!(is_permutation_from_zero(&[0, 1], 2));
         assert!(!is_permutation_from_zero(&[1, 0], 2));
         assert!(!is_permutation_from_zero(&[0, 0], 2));
+    }
+
+    #[test]
+    fn oversized_matrices_are_typed_errors() {
+        assert!(matches!(
+            CostMatrix::from_fn(usize::MAX, |_, _| 1.0),
+            Err(TspError::TooLarge { n: usize::MAX, .. })
+        ));
+        let mut calls = 0;
+        assert!(matches!(
+            CostMatrix::from_fn(CostMatrix::MAX_LEN + 1, |_, _| {
+                calls += 1;
+                1.0
+            }),
+            Err(TspError::TooLarge {
+                max: CostMatrix::MAX_LEN,
+                ..
+            })
+        ));
+        assert_eq!(calls, 0);
+        assert!(matches!(
+            CostMatrix::from_fn(0, |_, _| 1.0),
+            Err(TspError::Empty)
+        ));
+        assert!(matches!(
+            CostMatrix::from_rows(&vec![Vec::new(); CostMatrix::MAX_LEN + 1]),
+            Err(TspError::TooLarge { .. })
+        ));
+        // Short rows are reported without reserving n² costs first.
+        assert!(matches!(
+            CostMatrix::from_rows(&vec![Vec::new(); 1000]),
+            Err(TspError::NotSquare {
+                row: 0,
+                found: 0,
+                expected: 1000
+            })
+        ));
+        // from_fn and from_rows agree, diagonal included, and report the same first bad cost.
+        let f = |i: usize, j: usize| {
+            if (i, j) == (2, 1) {
+                -1.0
+            } else {
+                (i * 3 + j) as f64
+            }
+        };
+        let rows: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| f(i, j)).collect()).collect();
+        assert_eq!(CostMatrix::from_fn(3, f), CostMatrix::from_rows(&rows));
+        let ok = |i: usize, j: usize| (i * 3 + j) as f64;
+        let rows: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| ok(i, j)).collect()).collect();
+        assert_eq!(CostMatrix::from_fn(3, ok), CostMatrix::from_rows(&rows));
     }
 }

@@ -175,6 +175,8 @@ struct State<'a> {
     saved_sums_ok: bool,
     /// A spare order buffer.
     scratch: Vec<usize>,
+    /// The order at the last checkpoint of [`State::local_search`].
+    checkpoint: Vec<usize>,
 }
 
 impl State<'_> {
@@ -545,18 +547,50 @@ impl State<'_> {
         self.sums_ok = false;
     }
 
-    /// Local search with don't-look bits until no candidate move improves.
-    fn local_search(&mut self, cand: &Candidates, queue: &mut Vec<usize>, max_depth: usize) {
+    /// Local search with don't-look bits until no candidate move improves; returns true when
+    /// `should_stop`, polled every n moves, ended it early.
+    ///
+    /// A move is made when its computed gain exceeds a small constant, but rounding (2-opt's
+    /// prefix sums, huge or nearly equal costs) can make a zero gain look positive, and such
+    /// moves can cycle. So every n moves the recomputed length must have dropped strictly
+    /// since the last checkpoint, or the checkpoint tour is restored and the search ends: the
+    /// checkpoint lengths strictly decrease, so the search terminates. Ordinary moves gain far
+    /// more than the rounding of the length, so they pass the check.
+    fn local_search(
+        &mut self,
+        cand: &Candidates,
+        queue: &mut Vec<usize>,
+        max_depth: usize,
+        should_stop: &mut dyn FnMut() -> bool,
+    ) -> bool {
         let n = self.n();
         let mut active = vec![false; n];
         for &v in queue.iter() {
             active[v] = true;
         }
         let mut touched = Vec::new();
+        let mut moves = 0usize;
+        let mut checkpoint_len = self.length();
+        self.checkpoint.clone_from(&self.order);
         while let Some(a) = queue.pop() {
             active[a] = false;
             touched.clear();
             if self.improve_at(a, cand, max_depth, &mut touched) {
+                moves += 1;
+                if moves.is_multiple_of(n) {
+                    let len = self.length();
+                    // Lengths are sums of finite non-negative costs: never NaN, maybe +∞.
+                    if len >= checkpoint_len {
+                        let order = std::mem::take(&mut self.checkpoint);
+                        self.set_order(order);
+                        return false;
+                    }
+                    checkpoint_len = len;
+                    self.checkpoint.clone_from(&self.order);
+                    if should_stop() {
+                        return true;
+                    }
+                }
                 for &v in &touched {
                     if !active[v] {
                         active[v] = true;
@@ -565,6 +599,7 @@ impl State<'_> {
                 }
             }
         }
+        false
     }
 }
 
@@ -656,9 +691,13 @@ fn proven_optimal(m: &CostMatrix, lower_bound: f64) -> impl Fn(f64) -> bool {
     move |len: f64| len <= target + 1e-9 * len.abs().max(1.0)
 }
 
-/// Solves the closed ATSP on `m` heuristically; `should_stop` is polled between trials (pass
-/// `|| false` for a pure trial budget, or a deadline check for a time budget — the library
-/// reads no clock itself).
+/// Solves the closed ATSP on `m` heuristically; `should_stop` is polled between trials and
+/// every n improving moves of a local search (pass `|| false` for a pure trial budget, or a
+/// deadline check for a time budget — the library reads no clock itself).
+///
+/// Every local search terminates, even when rounding makes moves look improving that are not
+/// (huge or nearly equal costs): it ends when n moves in a row do not shorten the recomputed
+/// tour.
 ///
 /// # Errors
 /// [`TspError::InvalidConfig`] for bad settings.
@@ -767,10 +806,11 @@ pub fn solve(
         saved: Vec::new(),
         saved_sums_ok: false,
         scratch: Vec::new(),
+        checkpoint: Vec::new(),
     };
     st.set_order(order);
     let mut queue: Vec<usize> = (0..n).rev().collect();
-    st.local_search(&cand, &mut queue, cfg.max_depth);
+    let mut stopped = st.local_search(&cand, &mut queue, cfg.max_depth, &mut should_stop);
     let mut best = st.order.clone();
     let mut best_len = st.length();
     let mut rng = Rng(cfg.seed);
@@ -803,6 +843,7 @@ pub fn solve(
         && (trials < min_trials || stall < window)
         && stall < stall_limit
         && !optimal(best_len)
+        && !stopped
         && !should_stop()
     {
         trials += 1;
@@ -819,7 +860,7 @@ pub fn solve(
             // Every other restart without k-opt moves: among so few tours the two local
             // searches have different basins, and the optimum is sometimes in only one.
             let depth = if trials % 2 == 0 { 0 } else { cfg.max_depth };
-            st.local_search(&cand, &mut queue, depth);
+            stopped = st.local_search(&cand, &mut queue, depth, &mut should_stop);
             let len = st.length();
             if len < best_len - tol(best_len) {
                 stall = 0;
@@ -837,7 +878,7 @@ pub fn solve(
             let order = candidate_walk(&cand.succ, &mut rng);
             st.set_order(order);
             let mut queue: Vec<usize> = (0..n).collect();
-            st.local_search(&cand, &mut queue, cfg.max_depth.min(1));
+            stopped = st.local_search(&cand, &mut queue, cfg.max_depth.min(1), &mut should_stop);
             cur.clone_from(&st.order);
             cur_len = st.length();
         } else {
@@ -846,7 +887,7 @@ pub fn solve(
             };
             st.set_order(kicked);
             let mut queue = ends.to_vec();
-            st.local_search(&cand, &mut queue, cfg.max_depth);
+            stopped = st.local_search(&cand, &mut queue, cfg.max_depth, &mut should_stop);
             let len = st.length();
             if len < cur_len - tol(cur_len) {
                 run_stall = 0;
@@ -1004,6 +1045,87 @@ mod tests {
             prop_assert_eq!(s.tour.length, m.open_length(&s.tour.order));
             prop_assert!((s.tour.length - opt.length).abs() < 1e-9, "{} vs optimum {}", s.tour.length, opt.length);
         }
+    }
+
+    /// Checks a solution of `m` by [`solve`] (closed) or [`solve_open`] (open).
+    fn assert_valid(m: &CostMatrix, s: &Solution, open: bool) {
+        let n = m.len();
+        assert!(is_permutation_from_zero(&s.tour.order, n), "{:?}", s.tour);
+        let len = if open {
+            m.open_length(&s.tour.order)
+        } else {
+            m.closed_length(&s.tour.order)
+        };
+        assert_eq!(s.tour.length, len);
+    }
+
+    #[test]
+    fn rounding_cannot_make_local_search_cycle() {
+        // Equal costs: every move gains nothing, but 2-opt's prefix sums round some gains above
+        // the threshold; without the checkpoints of `local_search` these moves cycle.
+        let equal = CostMatrix::from_fn(20, |_, _| 1_234_567.891).unwrap();
+        // Huge costs: the sums' rounding errors dwarf the threshold.
+        let flat_huge = CostMatrix::from_fn(20, |_, _| 1e300).unwrap();
+        let huge = CostMatrix::from_fn(25, |i, j| {
+            1e300 * (1.0 + ((i * 7 + j * 3) % 11) as f64 / 1e14)
+        })
+        .unwrap();
+        for m in [&equal, &huge, &flat_huge] {
+            let closed = solve(m, &SolverConfig::default(), || false).unwrap();
+            assert_valid(m, &closed, false);
+            let open = solve_open(m, &SolverConfig::default(), || false).unwrap();
+            assert_valid(m, &open, true);
+        }
+    }
+
+    #[test]
+    fn long_local_search_polls_the_stop() {
+        // Points on a circle visited in a scrambled order: far more than n improving moves.
+        let n = 100;
+        let angle = |i: usize| (i * 37 % n) as f64 * std::f64::consts::TAU / n as f64;
+        let m = CostMatrix::from_fn(n, |i, j| {
+            let (a, b) = (angle(i), angle(j));
+            (a.cos() - b.cos()).hypot(a.sin() - b.sin())
+        })
+        .unwrap();
+        let nearest = |i: usize| {
+            let mut others: Vec<usize> = (0..n).filter(|&j| j != i).collect();
+            others.sort_by(|&a, &b| m.cost(i, a).total_cmp(&m.cost(i, b)));
+            others.truncate(8);
+            others
+        };
+        let cand = Candidates {
+            succ: (0..n).map(nearest).collect(),
+            pred: (0..n).map(nearest).collect(),
+        };
+        let mut st = State {
+            m: &m,
+            order: Vec::new(),
+            pos: vec![0; n],
+            fwd: Vec::new(),
+            bwd: Vec::new(),
+            sums_ok: false,
+            saved: Vec::new(),
+            saved_sums_ok: false,
+            scratch: Vec::new(),
+            checkpoint: Vec::new(),
+        };
+        let start: Vec<usize> = (0..n).collect();
+        let start_len = m.closed_length(&start);
+        st.set_order(start.clone());
+        let mut polls = 0;
+        let stopped = st.local_search(&cand, &mut (0..n).collect(), 2, &mut || {
+            polls += 1;
+            true
+        });
+        assert!(stopped);
+        assert_eq!(polls, 1);
+        assert!(is_permutation_from_zero(&st.from(0), n));
+        assert!(st.length() < start_len);
+        // Without the stop, the search runs to a local optimum.
+        st.set_order(start);
+        assert!(!st.local_search(&cand, &mut (0..n).collect(), 2, &mut || false));
+        assert!(st.length() < 7.0);
     }
 
     #[test]

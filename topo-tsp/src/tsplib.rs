@@ -49,8 +49,9 @@ enum Format {
 ///
 /// # Errors
 /// [`TspError::Parse`] with the 1-based line of the problem for unsupported types or formats,
-/// missing headers, malformed or missing numbers; the errors of [`CostMatrix::from_rows`] for
-/// bad costs.
+/// missing headers, malformed or missing numbers (the `DIMENSION` must match the numbers
+/// present, which are counted before any matrix is allocated); the errors of
+/// [`CostMatrix::from_rows`] for bad costs and for more than [`CostMatrix::MAX_LEN`] nodes.
 ///
 /// # Example
 /// ```
@@ -67,7 +68,8 @@ enum Format {
 pub fn parse_tsplib(text: &str) -> Result<TsplibInstance> {
     let mut name = String::new();
     let mut kind = None;
-    let mut dim: Option<usize> = None;
+    // The DIMENSION and its line.
+    let mut dim: Option<(usize, usize)> = None;
     let mut weight_type = None;
     let mut format = None;
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()));
@@ -98,11 +100,10 @@ pub fn parse_tsplib(text: &str) -> Result<TsplibInstance> {
                 });
             }
             "DIMENSION" => {
-                dim = Some(
-                    value
-                        .parse()
-                        .map_err(|_| err(no, format!("bad DIMENSION {value:?}")))?,
-                );
+                let n = value
+                    .parse()
+                    .map_err(|_| err(no, format!("bad DIMENSION {value:?}")))?;
+                dim = Some((n, no));
             }
             "EDGE_WEIGHT_TYPE" => weight_type = Some((no, value.to_ascii_uppercase())),
             "EDGE_WEIGHT_FORMAT" => {
@@ -124,7 +125,7 @@ pub fn parse_tsplib(text: &str) -> Result<TsplibInstance> {
     let (section_line, section) =
         section.ok_or_else(|| err(text.lines().count().max(1), "no data section"))?;
     let kind = kind.ok_or_else(|| err(section_line, "missing TYPE"))?;
-    let n = dim.ok_or_else(|| err(section_line, "missing DIMENSION"))?;
+    let (n, dim_line) = dim.ok_or_else(|| err(section_line, "missing DIMENSION"))?;
     if n == 0 {
         return Err(err(section_line, "DIMENSION must be at least 1"));
     }
@@ -142,8 +143,11 @@ pub fn parse_tsplib(text: &str) -> Result<TsplibInstance> {
         }
     }
     let last_line = numbers.last().map_or(section_line, |&(l, _)| l);
-    let mut rows = vec![vec![0.0; n]; n];
     let weight_type = weight_type.map_or("EXPLICIT".to_string(), |(_, t)| t);
+    // The header's size is checked against the numbers present (overflow-free) and against
+    // the matrix limit before anything of size n² is allocated.
+    let too_large = || err(dim_line, format!("DIMENSION {n} is too large"));
+    let mut rows;
     if section.starts_with("NODE_COORD_SECTION") {
         if weight_type != "EUC_2D" {
             return Err(err(
@@ -151,16 +155,18 @@ pub fn parse_tsplib(text: &str) -> Result<TsplibInstance> {
                 format!("coordinates with EDGE_WEIGHT_TYPE {weight_type} are not supported"),
             ));
         }
-        if numbers.len() != 3 * n {
+        let expected = n.checked_mul(3).ok_or_else(too_large)?;
+        if numbers.len() != expected {
             return Err(err(
                 last_line,
                 format!(
-                    "expected {} numbers (index x y) for {n} nodes, found {}",
-                    3 * n,
+                    "expected {expected} numbers (index x y) for {n} nodes, found {}",
                     numbers.len()
                 ),
             ));
         }
+        CostMatrix::check_len(n)?;
+        rows = vec![vec![0.0; n]; n];
         let xy: Vec<(f64, f64)> = numbers.chunks(3).map(|c| (c[1].1, c[2].1)).collect();
         for i in 0..n {
             for j in 0..n {
@@ -177,6 +183,25 @@ pub fn parse_tsplib(text: &str) -> Result<TsplibInstance> {
             ));
         }
         let format = format.ok_or_else(|| err(section_line, "missing EDGE_WEIGHT_FORMAT"))?;
+        let expected = match format {
+            Format::Full => n.checked_mul(n),
+            Format::UpperRow | Format::LowerRow => n.checked_mul(n - 1).map(|c| c / 2),
+            Format::UpperDiagRow | Format::LowerDiagRow => n
+                .checked_add(1)
+                .and_then(|m| m.checked_mul(n))
+                .map(|c| c / 2),
+        }
+        .ok_or_else(too_large)?;
+        if numbers.len() != expected {
+            return Err(err(
+                last_line,
+                format!(
+                    "expected {expected} weights for DIMENSION {n}, found {}",
+                    numbers.len()
+                ),
+            ));
+        }
+        CostMatrix::check_len(n)?;
         let cells: Vec<(usize, usize)> = match format {
             Format::Full => (0..n).flat_map(|i| (0..n).map(move |j| (i, j))).collect(),
             Format::UpperRow => (0..n)
@@ -186,16 +211,7 @@ pub fn parse_tsplib(text: &str) -> Result<TsplibInstance> {
             Format::LowerRow => (0..n).flat_map(|i| (0..i).map(move |j| (i, j))).collect(),
             Format::LowerDiagRow => (0..n).flat_map(|i| (0..=i).map(move |j| (i, j))).collect(),
         };
-        if numbers.len() != cells.len() {
-            return Err(err(
-                last_line,
-                format!(
-                    "expected {} weights for DIMENSION {n}, found {}",
-                    cells.len(),
-                    numbers.len()
-                ),
-            ));
-        }
+        rows = vec![vec![0.0; n]; n];
         for (&(i, j), &(no, v)) in cells.iter().zip(&numbers) {
             if i != j && !(v.is_finite() && v >= 0.0) {
                 return Err(err(
@@ -273,6 +289,54 @@ mod tests {
         assert!(matches!(
             parse_tsplib(negative),
             Err(TspError::Parse { line: 6, .. })
+        ));
+    }
+
+    #[test]
+    fn huge_dimensions_are_errors_before_allocation() {
+        // 10¹² weights announced, two present: counted before the n² matrix is allocated.
+        let million = "TYPE: ATSP\nDIMENSION: 1000000\nEDGE_WEIGHT_TYPE: EXPLICIT\nEDGE_WEIGHT_FORMAT: FULL_MATRIX\nEDGE_WEIGHT_SECTION\n0 1\n";
+        assert!(matches!(
+            parse_tsplib(million),
+            Err(TspError::Parse { line: 6, .. })
+        ));
+        // Counts that overflow usize, in every format.
+        let max = usize::MAX;
+        for format in [
+            "FULL_MATRIX",
+            "UPPER_ROW",
+            "LOWER_ROW",
+            "UPPER_DIAG_ROW",
+            "LOWER_DIAG_ROW",
+        ] {
+            let text = format!(
+                "TYPE: ATSP\nDIMENSION: {max}\nEDGE_WEIGHT_TYPE: EXPLICIT\nEDGE_WEIGHT_FORMAT: {format}\nEDGE_WEIGHT_SECTION\n0 1\n"
+            );
+            assert!(
+                matches!(parse_tsplib(&text), Err(TspError::Parse { line: 2, .. })),
+                "{format}"
+            );
+        }
+        let coords = format!(
+            "TYPE: TSP\nDIMENSION: {max}\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n1 0 0\n"
+        );
+        assert!(matches!(
+            parse_tsplib(&coords),
+            Err(TspError::Parse { line: 2, .. })
+        ));
+        // All coordinates present, but more nodes than a matrix may have.
+        let n = CostMatrix::MAX_LEN + 1;
+        let mut big =
+            format!("TYPE: TSP\nDIMENSION: {n}\nEDGE_WEIGHT_TYPE: EUC_2D\nNODE_COORD_SECTION\n");
+        for i in 1..=n {
+            big.push_str(&format!("{i} {i} 0\n"));
+        }
+        assert!(matches!(
+            parse_tsplib(&big),
+            Err(TspError::TooLarge {
+                max: CostMatrix::MAX_LEN,
+                ..
+            })
         ));
     }
 }
