@@ -185,7 +185,9 @@ struct AngleSpan {
     rate: f64,
 }
 
-/// Validates a time-stamped sequence: non-empty, finite, strictly increasing.
+/// Validates a time-stamped sequence: non-empty, finite, strictly increasing, and with
+/// finite gaps of finite reciprocal (interpolation scales by 1 / gap; an infinite factor
+/// times a zero offset would be NaN).
 fn check_times(times: impl Iterator<Item = f64>, what: &'static str) -> Result<()> {
     let mut last = f64::NEG_INFINITY;
     let mut n = 0;
@@ -194,11 +196,33 @@ fn check_times(times: impl Iterator<Item = f64>, what: &'static str) -> Result<(
         if t <= last {
             return Err(KinematicsError::Unsorted { what, index: i });
         }
+        if i > 0 {
+            let gap = t - last;
+            check_finite(gap, "gap between sample times")?;
+            check_finite(1.0 / gap, "reciprocal of a gap between sample times")?;
+        }
         last = t;
         n += 1;
     }
     if n == 0 {
         return Err(KinematicsError::Empty { what });
+    }
+    Ok(())
+}
+
+/// Validates pose samples: finite unit poses whose consecutive position steps are finite
+/// (a step that overflows would turn the interpolation into NaN).
+fn check_poses(poses: &[PoseSample]) -> Result<()> {
+    for p in poses {
+        check_pose(&p.pose, "pose sample")?;
+    }
+    for w in poses.windows(2) {
+        let step = w[1].pose.translation.vector - w[0].pose.translation.vector;
+        if !step.iter().all(|v| v.is_finite()) {
+            return Err(KinematicsError::NonFinite {
+                what: "position step between pose samples",
+            });
+        }
     }
     Ok(())
 }
@@ -296,9 +320,7 @@ impl Deskewer {
     fn prepare(&mut self, poses: &[PoseSample], angles: &[AngleSample]) -> Result<()> {
         check_times(poses.iter().map(|p| p.time), "pose samples")?;
         check_times(angles.iter().map(|a| a.time), "motor angle samples")?;
-        for p in poses {
-            check_pose(&p.pose, "pose sample")?;
-        }
+        check_poses(poses)?;
         for a in angles {
             check_finite(a.angle, "motor angle sample")?;
         }
@@ -317,14 +339,22 @@ impl Deskewer {
                 rate: 0.0,
             });
         }
-        self.angle_spans
-            .extend(angles.windows(2).map(|w| AngleSpan {
+        for w in angles.windows(2) {
+            // Finite angles can still differ by more than f64::MAX.
+            let step = check_finite(w[1].angle - w[0].angle, "step between motor angle samples")?;
+            // A tiny gap can overflow the rate even when 1 / gap is finite.
+            let rate = check_finite(
+                wrap_to_pi(step) / (w[1].time - w[0].time),
+                "motor angle rate between samples",
+            )?;
+            self.angle_spans.push(AngleSpan {
                 t0: w[0].time,
                 t1: w[1].time,
                 // Only sin θ and cos θ are used: wrapping keeps θ small for the fast sine.
                 theta0: wrap_to_pi(w[0].angle),
-                rate: wrap_to_pi(w[1].angle - w[0].angle) / (w[1].time - w[0].time),
-            }));
+                rate,
+            });
+        }
         Ok(())
     }
 
@@ -336,9 +366,18 @@ impl Deskewer {
     /// A point with non-finite coordinates maps to non-finite coordinates.
     ///
     /// # Errors
-    /// [`KinematicsError::Empty`], [`KinematicsError::Unsorted`], [`KinematicsError::NonFinite`],
-    /// [`KinematicsError::NotUnitRotation`], [`KinematicsError::LengthMismatch`] or
-    /// [`KinematicsError::TimeOutOfRange`]. On error `out` may be partly written.
+    /// - [`KinematicsError::Empty`] for no pose or no angle samples;
+    /// - [`KinematicsError::Unsorted`] for sample times that do not strictly increase;
+    /// - [`KinematicsError::NonFinite`] for a non-finite sample, point time or `BodyAt` time,
+    ///   and for finite samples whose interpolation would not be finite: a gap between
+    ///   consecutive sample times that is infinite or whose reciprocal is (below about
+    ///   5.6e-309 s), a position step between poses or an angle step between motor angles
+    ///   that overflows, or a motor angle rate (wrapped step / gap) that overflows;
+    /// - [`KinematicsError::NotUnitRotation`] for a pose whose rotation is not of unit norm;
+    /// - [`KinematicsError::LengthMismatch`] unless `out` is as long as `points`;
+    /// - [`KinematicsError::TimeOutOfRange`] for a point or `BodyAt` time outside the samples.
+    ///
+    /// On error `out` may be partly written.
     pub fn deskew(
         &mut self,
         poses: &[PoseSample],
@@ -454,7 +493,10 @@ impl Deskewer {
 /// Validates the samples on every call (O(n)); for many queries use [`Deskewer`].
 ///
 /// # Errors
-/// As [`Deskewer::deskew`] for the samples and the time.
+/// As [`Deskewer::deskew`] for the pose samples and the time: [`KinematicsError::Empty`],
+/// [`KinematicsError::Unsorted`], [`KinematicsError::NonFinite`] (also for a sample time gap
+/// that is infinite or has an infinite reciprocal, or a position step that overflows),
+/// [`KinematicsError::NotUnitRotation`] or [`KinematicsError::TimeOutOfRange`].
 ///
 /// # Example
 /// ```
@@ -472,9 +514,7 @@ impl Deskewer {
 /// ```
 pub fn interpolate_pose(samples: &[PoseSample], t: f64) -> Result<Isometry3<f64>> {
     check_times(samples.iter().map(|p| p.time), "pose samples")?;
-    for p in samples {
-        check_pose(&p.pose, "pose sample")?;
-    }
+    check_poses(samples)?;
     check_finite(t, "query time")?;
     let (start, end) = (samples[0].time, samples[samples.len() - 1].time);
     if t < start || t > end {

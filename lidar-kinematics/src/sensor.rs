@@ -40,6 +40,10 @@ use crate::error::{KinematicsError, Result, check_finite};
 use crate::motor::check_dt;
 
 /// Most beams a frame may have (keeps every index computation far from overflow).
+///
+/// Generating beams one at a time ([`BeamPattern::frame`], [`BeamPattern::beam`]) needs no
+/// memory per beam, but a collected frame ([`BeamPattern::fill_frame`]) holds
+/// `size_of::<Beam>()` = 32 bytes per beam: 8 GiB at this limit.
 pub const MAX_POINTS_PER_FRAME: usize = 1 << 28;
 
 /// One beam of a frame.
@@ -261,7 +265,8 @@ pub struct SpinningPattern {
 
 impl SpinningPattern {
     /// Validates and builds a pattern: ring elevations \[rad\] strictly increasing within
-    /// [−π/2, π/2], at least one azimuth step, frame period > 0 \[s\].
+    /// [−π/2, π/2], at least one azimuth step, frame period > 0 \[s\], at most
+    /// [`MAX_POINTS_PER_FRAME`] beams per frame (a collected frame costs 32 bytes a beam).
     ///
     /// # Errors
     /// [`KinematicsError::Empty`], [`KinematicsError::NonFinite`],
@@ -378,7 +383,8 @@ pub struct NonRepetitivePattern {
 impl NonRepetitivePattern {
     /// Validates and builds a pattern.
     ///
-    /// `points_per_frame` and `lines` ≥ 1, `frame_period` > 0 \[s\], −π/2 ≤ `elevation_min` <
+    /// `points_per_frame` in 1..=[`MAX_POINTS_PER_FRAME`] (a collected frame costs 32 bytes a
+    /// beam), `lines` ≥ 1, `frame_period` > 0 \[s\], −π/2 ≤ `elevation_min` <
     /// `elevation_max` ≤ π/2 \[rad\], `azimuth_turns_per_frame` and `elevation_cycles_per_frame`
     /// finite and > 0.
     ///
@@ -573,6 +579,9 @@ impl BeamPattern {
     }
 
     /// Appends the beams of frame `frame_index` to `out` (reuses its capacity).
+    ///
+    /// `out` grows to [`BeamPattern::points_per_frame`] beams of 32 bytes each (up to 8 GiB
+    /// at [`MAX_POINTS_PER_FRAME`]); iterate [`BeamPattern::frame`] instead to hold none.
     pub fn fill_frame(&self, frame_index: u64, out: &mut Vec<Beam>) {
         out.clear();
         out.extend(self.frame(frame_index));
@@ -1008,5 +1017,11 @@ mod tests {
             ),
             Err(KinematicsError::NonFinite { .. })
         ));
+    }
+
+    /// The memory figures in the docs of `MAX_POINTS_PER_FRAME` and `fill_frame` assume this.
+    #[test]
+    fn a_beam_is_32_bytes() {
+        assert_eq!(core::mem::size_of::<Beam>(), 32);
     }
 }

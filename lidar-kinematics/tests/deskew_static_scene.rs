@@ -9,7 +9,7 @@
 
 use lidar_kinematics::{
     AngleSample, DeskewTarget, Deskewer, Extrinsics, KinematicChain, KinematicsError, PoseSample,
-    TimedPoint, angle::wrap_to_two_pi, so3,
+    TimedPoint, angle::wrap_to_two_pi, interpolate_pose, so3,
 };
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use proptest::prelude::*;
@@ -276,4 +276,91 @@ fn bad_input_is_a_typed_error() {
     let at0 = [TimedPoint::new(0.0, Point3::new(1.0, 2.0, 3.0))];
     let out = d.deskew_to_vec(&one_pose, &one_angle, &at0, w).unwrap();
     assert!((out[0] - Point3::new(1.0, 2.0, 3.0)).norm() < 1e-15);
+}
+
+/// Finite samples whose interpolation would divide by a vanishing gap or subtract past
+/// f64::MAX are typed errors, not NaN output.
+#[test]
+fn finite_samples_that_would_interpolate_to_nan_are_errors() {
+    use KinematicsError as E;
+    let mut d = Deskewer::new(KinematicChain::default());
+    let poses = [
+        PoseSample::new(0.0, Isometry3::identity()),
+        PoseSample::new(0.1, Isometry3::identity()),
+    ];
+    let angles = [AngleSample::new(0.0, 0.0), AngleSample::new(0.1, 1.0)];
+    let pts = [TimedPoint::new(0.0, Point3::new(1.0, 0.0, 0.0))];
+    let w = DeskewTarget::World;
+    let fails = |r: Result<Vec<Point3<f64>>, E>, expected: &str| matches!(r, Err(E::NonFinite { what }) if what == expected);
+    let gap = "reciprocal of a gap between sample times";
+
+    // 1 / 5e-324 is infinite, and (t − t0) · ∞ at t = t0 is NaN.
+    let tiny = f64::from_bits(1);
+    let tiny_poses = [
+        PoseSample::new(0.0, Isometry3::identity()),
+        PoseSample::new(tiny, Isometry3::translation(1.0, 0.0, 0.0)),
+    ];
+    let tiny_angles = [AngleSample::new(0.0, 0.0), AngleSample::new(tiny, 1.0)];
+    assert!(fails(
+        d.deskew_to_vec(&tiny_poses, &tiny_angles, &pts, w),
+        gap
+    ));
+    assert!(fails(d.deskew_to_vec(&poses, &tiny_angles, &pts, w), gap));
+    assert!(fails(d.deskew_to_vec(&tiny_poses, &angles, &pts, w), gap));
+    assert!(matches!(
+        interpolate_pose(&tiny_poses, 0.0),
+        Err(E::NonFinite { what }) if what == gap
+    ));
+    // 1 / gap is finite here but 3 / gap is not.
+    let small_angles = [AngleSample::new(0.0, 0.0), AngleSample::new(1e-308, 3.0)];
+    assert!(fails(
+        d.deskew_to_vec(&poses, &small_angles, &pts, w),
+        "motor angle rate between samples"
+    ));
+
+    // Finite times whose gap overflows: (t − t0) · 0 with t − t0 = ∞.
+    let wide_poses = [
+        PoseSample::new(-1e308, Isometry3::identity()),
+        PoseSample::new(1e308, Isometry3::identity()),
+    ];
+    let wide_angles = [AngleSample::new(-1e308, 0.0), AngleSample::new(1e308, 1.0)];
+    let late = [TimedPoint::new(0.9e308, Point3::new(1.0, 0.0, 0.0))];
+    assert!(fails(
+        d.deskew_to_vec(&wide_poses, &wide_angles, &late, w),
+        "gap between sample times"
+    ));
+    assert!(matches!(
+        interpolate_pose(&wide_poses, 0.9e308),
+        Err(E::NonFinite {
+            what: "gap between sample times"
+        })
+    ));
+
+    // Finite angles whose difference overflows: wrap_to_pi(−∞) is NaN.
+    let far_angles = [AngleSample::new(0.0, 1e308), AngleSample::new(0.1, -1e308)];
+    assert!(fails(
+        d.deskew_to_vec(&poses, &far_angles, &pts, w),
+        "step between motor angle samples"
+    ));
+
+    // Finite positions whose difference overflows: p0 + (−∞) · 0 is NaN.
+    let far_poses = [
+        PoseSample::new(0.0, Isometry3::translation(1e308, 0.0, 0.0)),
+        PoseSample::new(0.1, Isometry3::translation(-1e308, 0.0, 0.0)),
+    ];
+    let step = "position step between pose samples";
+    assert!(fails(d.deskew_to_vec(&far_poses, &angles, &pts, w), step));
+    assert!(matches!(
+        interpolate_pose(&far_poses, 0.0),
+        Err(E::NonFinite { what }) if what == step
+    ));
+
+    // The guards leave ordinary samples alone, also large but representable ones.
+    let big = [
+        PoseSample::new(1e9, Isometry3::translation(1e300, 0.0, 0.0)),
+        PoseSample::new(1e9 + 1e-6, Isometry3::translation(-1e300, 0.0, 0.0)),
+    ];
+    assert!(interpolate_pose(&big, 1e9).is_ok());
+    let out = d.deskew_to_vec(&poses, &angles, &pts, w).unwrap();
+    assert!(out[0].coords.iter().all(|v| v.is_finite()));
 }

@@ -53,8 +53,10 @@ pub(crate) fn minimize(
     let m = settings.memory.max(1);
     let mut g = vec![0.0; n];
     let mut fx = f(x, &mut g);
-    let mut s_hist = vec![vec![0.0; n]; m];
-    let mut y_hist = vec![vec![0.0; n]; m];
+    // History rows are allocated as pairs are stored, so a large `memory` costs only what
+    // the run uses.
+    let mut s_hist: Vec<Vec<f64>> = Vec::new();
+    let mut y_hist: Vec<Vec<f64>> = Vec::new();
     let mut rho = vec![0.0; m];
     let mut alpha = vec![0.0; m];
     let (mut head, mut len) = (0usize, 0usize);
@@ -148,8 +150,14 @@ pub(crate) fn minimize(
         }
         let sy = dot(&s_new, &y_new);
         if sy > 1e-12 * dot(&s_new, &s_new).sqrt() * dot(&y_new, &y_new).sqrt() {
-            s_hist[head].copy_from_slice(&s_new);
-            y_hist[head].copy_from_slice(&y_new);
+            // `head` walks 0, 1, … before wrapping, so a slot is new exactly at the end.
+            if head == s_hist.len() {
+                s_hist.push(s_new.clone());
+                y_hist.push(y_new.clone());
+            } else {
+                s_hist[head].copy_from_slice(&s_new);
+                y_hist[head].copy_from_slice(&y_new);
+            }
             rho[head] = 1.0 / sy;
             head = (head + 1) % m;
             len = (len + 1).min(m);

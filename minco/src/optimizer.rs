@@ -39,7 +39,9 @@ pub struct OptimizerConfig {
     /// Radius r \[m\] of a corridor around the path, or `None` for no corridor. Piece i is kept
     /// within r of path segment i (head → first path point → … → tail). Default `None`.
     pub corridor_radius: Option<f64>,
-    /// L-BFGS memory, 1..=1024. Default 8.
+    /// L-BFGS memory, 1..=1024. Default 8. Each stored pair costs 2 × (number of optimised
+    /// variables) f64s; pairs are allocated as they are stored, so the history grows to at
+    /// most min(memory, iterations) pairs.
     pub memory: usize,
     /// Iteration budget. Default 300.
     pub max_iterations: usize,

@@ -32,6 +32,10 @@ impl<const D: usize> Trajectory<D> {
     /// Most samples [`Trajectory::sample`] returns.
     pub const MAX_SAMPLES: usize = 1 << 24;
 
+    /// Most samples per piece [`Trajectory::max_derivative_norm`] takes (the optimiser's
+    /// limit on its own sampling); larger counts are treated as this one.
+    pub const MAX_SAMPLES_PER_PIECE: usize = 1 << 16;
+
     pub(crate) fn from_parts(
         coeffs_per_piece: usize,
         durations: Vec<f64>,
@@ -73,8 +77,13 @@ impl<const D: usize> Trajectory<D> {
 
     /// Coefficients of piece `i`, lowest power first, or `None` if there is no such piece.
     pub fn piece_coefficients(&self, i: usize) -> Option<&[[f64; D]]> {
+        if i >= self.piece_count() {
+            return None;
+        }
+        // Checked: a wrapped product would select another piece.
         let n = self.coeffs_per_piece;
-        self.coeffs.get(n * i..n * (i + 1))
+        let start = n.checked_mul(i)?;
+        self.coeffs.get(start..start.checked_add(n)?)
     }
 
     /// The piece containing time `t` \[s\] and the local time within it.
@@ -160,9 +169,11 @@ impl<const D: usize> Trajectory<D> {
     /// equally spaced points on every piece, ends included. The true maximum can exceed it by
     /// O(h²) of the curvature of the norm between samples; 64 samples per piece is within
     /// ~0.1 % for MINCO pieces.
+    ///
+    /// `samples_per_piece` is clamped to 1..=[`Trajectory::MAX_SAMPLES_PER_PIECE`].
     pub fn max_derivative_norm(&self, k: usize, samples_per_piece: usize) -> f64 {
         let n = self.coeffs_per_piece;
-        let s = samples_per_piece.max(1);
+        let s = samples_per_piece.clamp(1, Self::MAX_SAMPLES_PER_PIECE);
         let mut best = 0.0f64;
         for (i, &t) in self.durations.iter().enumerate() {
             let c = &self.coeffs[n * i..n * (i + 1)];
@@ -182,5 +193,51 @@ impl<const D: usize> Trajectory<D> {
     /// Largest acceleration norm, by dense sampling (see [`Trajectory::max_derivative_norm`]).
     pub fn max_acceleration(&self, samples_per_piece: usize) -> f64 {
         self.max_derivative_norm(2, samples_per_piece)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use crate::{MinimumJerk, MinimumSnap};
+
+    /// No index past the last piece has coefficients, however large.
+    #[test]
+    fn piece_coefficients_out_of_range_is_none() {
+        let mut m = MinimumSnap::<1>::new(2).unwrap();
+        let rest = |p: f64| [[p], [0.0], [0.0], [0.0]];
+        m.solve(&rest(0.0), &rest(2.0), &[[1.0]], &[1.0, 1.0])
+            .unwrap();
+        let t = m.trajectory().unwrap();
+        assert_eq!(t.piece_coefficients(0).map(<[_]>::len), Some(8));
+        assert_eq!(t.piece_coefficients(1).map(<[_]>::len), Some(8));
+        assert_eq!(t.piece_coefficients(2), None);
+        assert_eq!(t.piece_coefficients(usize::MAX), None);
+        // 8 · (2^(bits−3) + 1) wraps to 8, the start of piece 1.
+        assert_eq!(t.piece_coefficients((1 << (usize::BITS - 3)) + 1), None);
+    }
+
+    /// Sample counts above the cap cost no more than the cap and give its result.
+    #[test]
+    fn max_derivative_norm_caps_the_sample_count() {
+        let mut m = MinimumJerk::<2>::new(2).unwrap();
+        let rest = |x: f64| [[x, 0.0], [0.0; 2], [0.0; 2]];
+        m.solve(&rest(0.0), &rest(3.0), &[[1.0, 1.0]], &[1.0, 2.0])
+            .unwrap();
+        let t = m.trajectory().unwrap();
+        let cap = super::Trajectory::<2>::MAX_SAMPLES_PER_PIECE;
+        let capped = t.max_speed(cap);
+        assert!(capped > 0.0);
+        assert_eq!(t.max_speed(usize::MAX).to_bits(), capped.to_bits());
+        assert_eq!(
+            t.max_acceleration(usize::MAX).to_bits(),
+            t.max_acceleration(cap).to_bits()
+        );
+        assert_eq!(
+            t.max_derivative_norm(3, cap + 1).to_bits(),
+            t.max_derivative_norm(3, cap).to_bits()
+        );
+        // Ordinary counts are untouched: 0 still means 1.
+        assert_eq!(t.max_speed(0).to_bits(), t.max_speed(1).to_bits());
     }
 }
