@@ -18,6 +18,22 @@ pub struct CostMatrix {
     data: Vec<f64>,
 }
 
+/// The stored cost of cell (i, j): 0 on the diagonal (whatever was given), else `v` when it is
+/// finite and non-negative.
+fn entry(i: usize, j: usize, v: f64) -> Result<f64> {
+    if i == j {
+        Ok(0.0)
+    } else if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(TspError::BadCost {
+            row: i,
+            col: j,
+            value: v,
+        })
+    }
+}
+
 impl CostMatrix {
     /// The most nodes a matrix may have: 16 384, whose n² costs take 2 GiB. Larger sizes are
     /// refused before anything is allocated, so a bad size is an error rather than an
@@ -64,17 +80,7 @@ impl CostMatrix {
                 });
             }
             for (j, &v) in row.iter().enumerate() {
-                if i == j {
-                    data.push(0.0);
-                } else if v.is_finite() && v >= 0.0 {
-                    data.push(v);
-                } else {
-                    return Err(TspError::BadCost {
-                        row: i,
-                        col: j,
-                        value: v,
-                    });
-                }
+                data.push(entry(i, j, v)?);
             }
         }
         Ok(Self { n, data })
@@ -105,18 +111,7 @@ impl CostMatrix {
         let mut data = Vec::with_capacity(n * n);
         for i in 0..n {
             for j in 0..n {
-                let v = f(i, j);
-                if i == j {
-                    data.push(0.0);
-                } else if v.is_finite() && v >= 0.0 {
-                    data.push(v);
-                } else {
-                    return Err(TspError::BadCost {
-                        row: i,
-                        col: j,
-                        value: v,
-                    });
-                }
+                data.push(entry(i, j, f(i, j))?);
             }
         }
         Ok(Self { n, data })

@@ -179,6 +179,24 @@ struct State<'a> {
     checkpoint: Vec<usize>,
 }
 
+impl<'a> State<'a> {
+    /// A state over `m` with no tour yet (set one with [`State::set_order`]).
+    fn new(m: &'a CostMatrix) -> Self {
+        Self {
+            m,
+            order: Vec::new(),
+            pos: vec![0; m.len()],
+            fwd: Vec::new(),
+            bwd: Vec::new(),
+            sums_ok: false,
+            saved: Vec::new(),
+            saved_sums_ok: false,
+            scratch: Vec::new(),
+            checkpoint: Vec::new(),
+        }
+    }
+}
+
 impl State<'_> {
     fn n(&self) -> usize {
         self.order.len()
@@ -796,18 +814,7 @@ pub fn solve(
     if order.len() != n {
         order = nearest_neighbour(m, &cand.succ);
     }
-    let mut st = State {
-        m,
-        order: Vec::new(),
-        pos: vec![0; n],
-        fwd: Vec::new(),
-        bwd: Vec::new(),
-        sums_ok: false,
-        saved: Vec::new(),
-        saved_sums_ok: false,
-        scratch: Vec::new(),
-        checkpoint: Vec::new(),
-    };
+    let mut st = State::new(m);
     st.set_order(order);
     let mut queue: Vec<usize> = (0..n).rev().collect();
     let mut stopped = st.local_search(&cand, &mut queue, cfg.max_depth, &mut should_stop);
@@ -1098,18 +1105,7 @@ mod tests {
             succ: (0..n).map(nearest).collect(),
             pred: (0..n).map(nearest).collect(),
         };
-        let mut st = State {
-            m: &m,
-            order: Vec::new(),
-            pos: vec![0; n],
-            fwd: Vec::new(),
-            bwd: Vec::new(),
-            sums_ok: false,
-            saved: Vec::new(),
-            saved_sums_ok: false,
-            scratch: Vec::new(),
-            checkpoint: Vec::new(),
-        };
+        let mut st = State::new(&m);
         let start: Vec<usize> = (0..n).collect();
         let start_len = m.closed_length(&start);
         st.set_order(start.clone());
