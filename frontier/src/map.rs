@@ -636,6 +636,20 @@ impl VoxelMap {
                       occupied: &mut [u16],
                       first: usize| {
             let mut done = Updated::default();
+            // Every marked cell of a block never seen before changes: room for them at once.
+            let fresh: usize = work
+                .iter()
+                .filter(|w| known[w.0 - first] == 0)
+                .map(|&(_, block, _)| {
+                    let (passed, hits) = words(block);
+                    passed
+                        .iter()
+                        .zip(&hits)
+                        .map(|(p, h)| (p | h).count_ones() as usize)
+                        .sum::<usize>()
+                })
+                .sum();
+            done.changed.reserve(fresh);
             for &(b, block, corner) in work {
                 let (passed, hits) = words(block);
                 let mut storage = BlockMut {
@@ -967,6 +981,9 @@ fn update_block(
     model: Model,
     out: &mut Updated,
 ) {
+    // A block with no known cell: every cell is unknown before the update, so the changes are
+    // the marks themselves (the values below are those of the general rule for UNKNOWN).
+    let fresh = *block.known == 0;
     let (layers, _) = block.cells.as_chunks_mut::<64>();
     for (layer, cells) in layers.iter_mut().enumerate() {
         let (h, m) = (hits[layer], passed[layer] & !hits[layer]);
@@ -975,6 +992,42 @@ fn update_block(
         }
         out.hits += h.count_ones() as usize;
         out.free += m.count_ones() as usize;
+        if fresh {
+            let (hit, missed) = (model.hit.min(model.hi), model.miss.max(model.lo));
+            let mut changed = 0;
+            if class(hit) != 0 {
+                changed |= h;
+            }
+            if class(missed) != 0 {
+                changed |= m;
+            }
+            let states = [VoxelMap::state_of(missed), VoxelMap::state_of(hit)];
+            // At most 64 cells a layer.
+            #[allow(clippy::cast_possible_truncation)]
+            {
+                *block.known += changed.count_ones() as u16;
+                *block.occupied += (changed & h).count_ones() as u16
+                    * u16::from(states[1] == CellState::Occupied)
+                    + (changed & m).count_ones() as u16
+                        * u16::from(states[0] == CellState::Occupied);
+            }
+            while changed != 0 {
+                let j = changed.trailing_zeros() as usize;
+                changed &= changed - 1;
+                let is_hit = usize::from(h >> j & 1 == 1);
+                cells[j] = if is_hit == 1 { hit } else { missed };
+                let after = states[is_hit];
+                // Layer and lane indices are below 512.
+                #[allow(clippy::cast_possible_truncation)]
+                let index = ((layer << 6) | j) as u32;
+                out.changed.push(CellChange {
+                    cell: VoxelMap::cell_in_block(corner, index),
+                    before: CellState::Unknown,
+                    after,
+                });
+            }
+            continue;
+        }
         let old = *cells;
         let (hit_lanes, miss_lanes) = (expand(h), expand(m));
         // Lane by lane without branches, so the compiler can use vector instructions.

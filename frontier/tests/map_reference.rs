@@ -151,8 +151,35 @@ proptest! {
             pts.push(o + Vector3::new(11.0, 0.31 * k as f64, 0.2));
             frames.push((o, pts));
         }
+        let states = |map: &VoxelMap| {
+            let mut m = BTreeMap::new();
+            map.for_each_known(|c, s| {
+                m.insert(c, s);
+            });
+            m
+        };
         for (o, pts) in &frames {
-            map.insert_frame(o, pts).unwrap();
+            // The reported changes are exactly the cells whose state differs, each once, and
+            // the map's counts follow them.
+            let before = states(&map);
+            let update = map.insert_frame(o, pts).unwrap();
+            let after = states(&map);
+            let mut want_changes = Vec::new();
+            for (c, s) in &after {
+                let was = before.get(c).copied().unwrap_or(CellState::Unknown);
+                if was != *s {
+                    want_changes.push((*c, was, *s));
+                }
+            }
+            let mut got_changes: Vec<_> =
+                update.changed.iter().map(|x| (x.cell, x.before, x.after)).collect();
+            got_changes.sort_unstable_by_key(|x| x.0);
+            prop_assert_eq!(got_changes, want_changes);
+            prop_assert_eq!(map.known_cells(), after.len());
+            prop_assert_eq!(
+                map.occupied_cells(),
+                after.values().filter(|s| **s == CellState::Occupied).count()
+            );
         }
         let want = reference(&map, &frames);
         let mut got = BTreeMap::new();
