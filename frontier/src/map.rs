@@ -435,8 +435,9 @@ impl VoxelMap {
     }
 
     /// Bytes of working memory kept between frames for inserting the next one: the marks of
-    /// the largest frame so far (three bits per cell of its box, at most 16 MiB), the list of
-    /// its blocks and the ray buffer.
+    /// the largest frame so far (three bits per cell of its box, at most 16 MiB unless one layer
+    /// of blocks of the box needs more: 24 bits per cell of the box's x–y extent, e.g. 12 MB
+    /// for a frame 100 m across at 5 cm), the list of its blocks and the ray buffer.
     pub fn scratch_bytes(&self) -> usize {
         use core::mem::size_of;
         (self.marks.capacity() + self.spare.capacity()) * size_of::<u64>()
@@ -478,8 +479,8 @@ impl VoxelMap {
     /// every marked cell is updated once, block by block in storage order. Frames of at least
     /// 4096 rays are marked and updated by two threads of rayon's pool; the result is the
     /// same, bit for bit, for any split and any number of threads. A bitset larger than
-    /// 16 MiB is not kept: such frames are marked in slabs of whole block layers, each walking
-    /// the rays that reach it.
+    /// 16 MiB is not kept: such frames are marked in slabs of whole block layers (one layer at
+    /// the thinnest, see [`VoxelMap::scratch_bytes`]), each walking the rays that reach it.
     ///
     /// # Errors
     /// [`FrontierError::NonFinite`] for a NaN or infinite origin,

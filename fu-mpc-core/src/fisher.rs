@@ -103,7 +103,9 @@ impl FisherTable {
     /// give a rank-deficient F, which ε keeps invertible.
     ///
     /// # Errors
-    /// An invalid `config`, or kinematic errors for a non-finite body pose.
+    /// An invalid `config`, kinematic errors for a non-finite body pose, and
+    /// [`CoreError::NonFinite`](crate::CoreError::NonFinite) when ε is so small that some f(θ_c)
+    /// overflows (3/ε for a direction that sees nothing: ε below about 1e-308).
     pub fn build(
         cloud: &[Point3<f64>],
         body_pose: &Isometry3<f64>,

@@ -112,6 +112,15 @@ fn fallbacks_and_errors() {
             .iter()
             .all(|v| (v - 3.0 / cfg.epsilon).abs() < 1e-12)
     );
+    // An ε so small that 3/ε overflows is the documented error, not an infinite table.
+    let tiny_eps = FisherConfig {
+        epsilon: 1e-310,
+        ..cfg
+    };
+    assert!(matches!(
+        FisherTable::build(&[], &id, &chain, &sensor(), &tiny_eps),
+        Err(fu_mpc_core::CoreError::NonFinite { .. })
+    ));
     // A single plane: F has rank one, the cost stays finite.
     let plane: Vec<_> = (0..400)
         .map(|i| {

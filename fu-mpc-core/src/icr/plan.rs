@@ -228,8 +228,8 @@ impl<F: FovSdf> Icr<F> {
     ///
     /// # Errors
     /// [`CoreError::LengthMismatch`] unless `u` has K entries, [`CoreError::NonFinite`] for
-    /// NaN poses or controls, [`CoreError::NotPositiveDefinite`] if a dense Y_K cannot be
-    /// factorised.
+    /// NaN poses or controls, or controls so large that the reward is not finite,
+    /// [`CoreError::NotPositiveDefinite`] if a dense Y_K cannot be factorised.
     pub fn reward(
         &mut self,
         map: &InformationMap,
@@ -253,7 +253,13 @@ impl<F: FovSdf> Icr<F> {
                     }
                 }
             });
-        map.log_det_with(&self.m, None)
+        let reward = map.log_det_with(&self.m, None)?;
+        // Finite controls so large that the poses overflow give no reward, as in
+        // `reward_and_gradient`.
+        if !reward.is_finite() {
+            return Err(CoreError::NonFinite { what: "reward" });
+        }
+        Ok(reward)
     }
 
     /// The reward and its gradient ∂r/∂u_k (Proposition 1), written to `grad`.
@@ -834,6 +840,33 @@ mod tests {
             icr.reward(&map, &Isometry3::identity(), &nan_u),
             Err(CoreError::NonFinite { .. })
         ));
+        // Huge but finite controls, starts and cells: a finite reward or an error, never
+        // Ok(NaN).
+        for c in [1e20, 1e155, 1e300, f64::MAX] {
+            let far = Isometry3::new(Vector3::new(c, -c, c), Vector3::zeros());
+            let cells = vec![Point3::new(c, c, 0.0), Point3::new(-c, 0.0, c)];
+            for (map, start, u) in [
+                (
+                    grid_map(1, 4, false),
+                    Isometry3::identity(),
+                    vec![Vector6::repeat(c); 5],
+                ),
+                (grid_map(1, 4, true), far, u.clone()),
+                (
+                    InformationMap::diagonal(cells, vec![1.0, c]).unwrap(),
+                    Isometry3::identity(),
+                    vec![Vector6::repeat(0.1); 5],
+                ),
+            ] {
+                let mut g = vec![Vector6::zeros(); 5];
+                for r in [
+                    icr.reward(&map, &start, &u),
+                    icr.reward_and_gradient(&map, &start, &u, &mut g),
+                ] {
+                    assert!(r.as_ref().map_or(true, |r| r.is_finite()), "{c}: {r:?}");
+                }
+            }
+        }
         let mut g = vec![Vector6::zeros(); 4];
         assert!(
             icr.reward_and_gradient(&map, &Isometry3::identity(), &u, &mut g)
