@@ -2,7 +2,8 @@
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
+    DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT,
+    SolverStatus,
 };
 
 /// min ½ uᵀ H u + qᵀ u  s.t.  lo ≤ u ≤ hi,  w_lo ≤ ω_0 + Δt·cumsum(u)_k ≤ w_hi (k = 1..N),
@@ -54,6 +55,29 @@ impl StepQp {
 
     /// Solves with Clarabel; `None` if it does not report a solution.
     pub(crate) fn solve_clarabel(&self) -> Option<Vec<f64>> {
+        // Clarabel's equilibration can make its iterates cycle at a degenerate vertex (seen
+        // with ω0 on a speed limit, the first rows of that limit all active at the optimum);
+        // without it, or with shorter steps, those problems solve.
+        for variant in 0..3 {
+            let mut settings = DefaultSettingsBuilder::default();
+            settings
+                .verbose(false)
+                .tol_gap_abs(1e-10)
+                .tol_gap_rel(1e-10)
+                .tol_feas(1e-10)
+                .equilibrate_enable(variant != 1);
+            if variant == 2 {
+                settings.max_step_fraction(0.9);
+            }
+            if let Some(x) = settings.build().ok().and_then(|s| self.solve_with(s)) {
+                return Some(x);
+            }
+        }
+        None
+    }
+
+    /// Solves with Clarabel and the given settings.
+    fn solve_with(&self, settings: DefaultSettings<f64>) -> Option<Vec<f64>> {
         let n = self.n;
         let h = self.hessian();
         // Upper triangle of H in CSC.
@@ -92,14 +116,7 @@ impl StepQp {
         let mut b = vec![self.u_max; 2 * n];
         b.extend(self.w_hi.iter().map(|w| w - self.omega0));
         b.extend(self.w_lo.iter().map(|w| self.omega0 - w));
-        let cones = [NonnegativeConeT(m)];
-        let settings = DefaultSettingsBuilder::default()
-            .verbose(false)
-            .tol_gap_abs(1e-10)
-            .tol_gap_rel(1e-10)
-            .tol_feas(1e-10)
-            .build()
-            .ok()?;
+        let cones = [NonnegativeConeT::<f64>(m)];
         let mut solver = DefaultSolver::new(&p, &self.q, &a, &b, &cones, settings).ok()?;
         solver.solve();
         match solver.solution.status {
@@ -154,6 +171,34 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// A degenerate vertex (ω0 on the lower limit, the optimum on the first two of its rows)
+    /// on which Clarabel's default settings cycle until their iteration limit.
+    #[test]
+    fn a_degenerate_vertex_is_solved() {
+        let band = 2.488_389_921_361_874_5;
+        let qp = StepQp {
+            n: 3,
+            gamma: 0.672_268_099_349_669_8,
+            rho: 12.491_435_637_457_42,
+            q: vec![
+                5.666_323_073_241_197,
+                3.766_406_310_270_751_7,
+                -14.211_117_186_316_645,
+            ],
+            u_max: 5.761_649_075_646_14,
+            omega0: -band,
+            dt: 0.1,
+            w_lo: vec![-band; 3],
+            w_hi: vec![band; 3],
+        };
+        let x = qp.solve_clarabel().unwrap();
+        // KKT by hand: u0 = u1 = 0 on the speed rows, u2 free inside its box.
+        let u2 = -qp.q[2] / (qp.rho + 2.0 * qp.gamma);
+        for (got, want) in x.iter().zip([0.0, 0.0, u2]) {
+            assert!((got - want).abs() < 1e-7, "{x:?}");
         }
     }
 }
