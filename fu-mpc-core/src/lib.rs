@@ -35,6 +35,7 @@
 mod active_set;
 mod controller;
 mod error;
+mod fastmath;
 mod fisher;
 mod fov_gap;
 pub mod icr;
