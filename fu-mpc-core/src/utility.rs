@@ -518,8 +518,8 @@ mod tests {
         fn matches_the_libm_reference(
             poses in proptest::collection::vec(pose_strategy(), 1..4),
             raw in proptest::collection::vec(
-                (-25.0f64..25.0, -25.0f64..25.0, -8.0f64..8.0, 0.0f64..100.0, 0u8..12),
-                0..=40,
+                (-150.0f64..150.0, -60.0f64..60.0, -8.0f64..8.0, 0.0f64..100.0, 0u8..12),
+                0..=200,
             ),
             config in config_strategy(),
             knots in 1usize..=100,
