@@ -1087,8 +1087,19 @@ impl Explorer<'_> {
                     .iter()
                     .map(|&n| self.graph.position(n))
                     .collect::<Result<Vec<_>, _>>()?;
-                chosen = Some((i - 1, pts));
-                break;
+                // Edges are checked once, when made: a path across cells seen occupied since
+                // would give trajectories that come too close, replaced again and again.
+                let still_free = pts.windows(2).enumerate().all(|(k, w)| {
+                    if k == 0 {
+                        free_from_uav(&w[0], &w[1])
+                    } else {
+                        free(&w[0], &w[1])
+                    }
+                });
+                if still_free {
+                    chosen = Some((i - 1, pts));
+                    break;
+                }
             }
         }
         // The permanent nodes the graph reaches from the UAV near the first targets, with
