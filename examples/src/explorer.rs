@@ -60,11 +60,6 @@ const GRID_SEARCHES: usize = 2;
 /// Cell expansions per grid search.
 const GRID_EXPANSIONS: usize = 60_000;
 
-/// Cell expansions of the one wide search a stall gets before the run ends: a way to targets
-/// at the far end of a large scene (about 100 m of 0.2 m cells) that the graph does not
-/// connect.
-const WIDE_EXPANSIONS: usize = 2_000_000;
-
 /// A UAV that stays in a box of diagonal [`STUCK_SPAN`] this long while it has a target gives
 /// that target up \[s\].
 const STUCK_TIME: f64 = 30.0;
@@ -916,8 +911,6 @@ struct Explorer<'a> {
     target: Option<(Point3<f64>, Point3<f64>)>,
     /// Since when the plan has had no target, or none reachable.
     stalled_since: Option<f64>,
-    /// The stall whose wide search has run (its start).
-    wide_searched: Option<f64>,
     /// Viewpoints flown to whose frontier stayed: targets there are not chosen again.
     exhausted: Vec<Point3<f64>>,
     /// When the UAV reached the viewpoint it now hovers at.
@@ -986,50 +979,39 @@ impl Explorer<'_> {
         // of the run.
         let stuck = self.headway.stuck(&here, t);
         // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
-        // and the tour is planned where the UAV can act next. When none of them gives a
-        // target that is not exhausted (their frontiers out of view from anywhere the UAV
-        // can go), the next nearest are planned, so far frontiers still end a stall.
-        let mut nearest: Vec<&frontier::Cluster> = self
+        // and the tour is planned where the UAV can act next.
+        let mut clusters: Vec<&frontier::Cluster> = self
             .mission
             .ids()
             .iter()
             .filter_map(|id| self.frontiers.cluster(*id))
             .collect();
-        let window = self.config.max_clusters.max(1);
-        if nearest.len() > window {
-            nearest.sort_by(|a, b| {
+        if clusters.len() > self.config.max_clusters {
+            clusters.sort_by(|a, b| {
                 let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
                 d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
             });
+            clusters.truncate(self.config.max_clusters);
+            clusters.sort_by_key(|c| c.id());
         }
-        let mut targets: Vec<Target> = Vec::new();
-        for chunk in nearest.chunks(window) {
-            let mut clusters = chunk.to_vec();
-            if nearest.len() > window {
-                clusters.sort_by_key(|c| c.id());
-            }
-            let plan = plan_targets_among(
-                &self.map,
-                &clusters,
-                &here,
-                &Omnidirectional,
-                |_| true,
-                &self.config.viewpoints,
-            )?;
-            let exhausted = &self.exhausted;
-            targets = plan
-                .targets
-                .into_iter()
-                .filter(|t| {
-                    exhausted
-                        .iter()
-                        .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
-                })
-                .collect();
-            if !targets.is_empty() {
-                break;
-            }
-        }
+        let plan = plan_targets_among(
+            &self.map,
+            &clusters,
+            &here,
+            &Omnidirectional,
+            |_| true,
+            &self.config.viewpoints,
+        )?;
+        let exhausted = &self.exhausted;
+        let targets: Vec<&Target> = plan
+            .targets
+            .iter()
+            .filter(|t| {
+                exhausted
+                    .iter()
+                    .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
+            })
+            .collect();
         self.last_targets = targets.len();
         // The current target is kept until it is reached or its frontier is gone: re-choosing
         // the tour's first target every cycle makes the UAV turn back and forth between
@@ -1087,19 +1069,8 @@ impl Explorer<'_> {
                     .iter()
                     .map(|&n| self.graph.position(n))
                     .collect::<Result<Vec<_>, _>>()?;
-                // Edges are checked once, when made: a path across cells seen occupied since
-                // would give trajectories that come too close, replaced again and again.
-                let still_free = pts.windows(2).enumerate().all(|(k, w)| {
-                    if k == 0 {
-                        free_from_uav(&w[0], &w[1])
-                    } else {
-                        free(&w[0], &w[1])
-                    }
-                });
-                if still_free {
-                    chosen = Some((i - 1, pts));
-                    break;
-                }
+                chosen = Some((i - 1, pts));
+                break;
             }
         }
         // The permanent nodes the graph reaches from the UAV near the first targets, with
@@ -1159,39 +1130,12 @@ impl Explorer<'_> {
                 }
             }
         }
-        // Before a stall ends the run (half its time gone), one wide search for the first
-        // targets: at the planning clearance, then at the clearance trajectories must keep,
-        // because cells seen after the UAV came through can narrow the way back below the
-        // planning clearance and close every way out of a pocket.
-        let stall = self
-            .stalled_since
-            .filter(|s| t - s >= 0.5 * self.config.stall_time);
-        if chosen.is_none()
-            && let Some(since) = stall
-            && self.wide_searched != Some(since)
-        {
-            self.wide_searched = Some(since);
-            let squeeze = self.config.flight.radius + SAFETY_MARGIN;
-            'wide: for clearance in [c, squeeze] {
-                for &i in tour.order.iter().filter(|&&i| i != 0).take(GRID_SEARCHES) {
-                    let to = targets[i - 1].viewpoint;
-                    if let Some(path) = grid_path(&self.map, &here, &to, clearance, WIDE_EXPANSIONS)
-                    {
-                        if clearance >= c {
-                            self.join_path(&path)?;
-                        }
-                        chosen = Some((i - 1, path.iter().map(arr).collect()));
-                        break 'wide;
-                    }
-                }
-            }
-        }
         let Some((i, positions)) = chosen else {
             self.stalled_since.get_or_insert(t);
             return Ok(false);
         };
         self.stalled_since = None;
-        let target = &targets[i];
+        let target = targets[i];
         if stuck {
             self.exhausted.push(target.viewpoint);
             self.headway.restart(&here, t);
@@ -1446,7 +1390,6 @@ pub fn explore(
         },
         target: None,
         stalled_since: None,
-        wide_searched: None,
         exhausted: Vec::new(),
         arrival: None,
         headway: Headway::default(),
