@@ -58,18 +58,16 @@ impl StepQp {
         // Clarabel's equilibration can make its iterates cycle at a degenerate vertex (seen
         // with ω0 on a speed limit, the first rows of that limit all active at the optimum);
         // without it, or with shorter steps, those problems solve.
-        for variant in 0..3 {
-            let mut settings = DefaultSettingsBuilder::default();
-            settings
+        for (equilibrate, step_fraction) in [(true, 0.99), (false, 0.99), (true, 0.9)] {
+            let settings = DefaultSettingsBuilder::default()
                 .verbose(false)
                 .tol_gap_abs(1e-10)
                 .tol_gap_rel(1e-10)
                 .tol_feas(1e-10)
-                .equilibrate_enable(variant != 1);
-            if variant == 2 {
-                settings.max_step_fraction(0.9);
-            }
-            if let Some(x) = settings.build().ok().and_then(|s| self.solve_with(s)) {
+                .equilibrate_enable(equilibrate)
+                .max_step_fraction(step_fraction)
+                .build();
+            if let Some(x) = settings.ok().and_then(|s| self.solve_with(s)) {
                 return Some(x);
             }
         }

@@ -109,13 +109,8 @@ pub fn frontier_surrogates(
             return invalid("target score", t.score, "must be >= 0");
         }
     }
-    let Constants {
-        h,
-        inv_h,
-        motor_base,
-        two_s2,
-        cos_gate,
-    } = Constants::new(chain, config, knots);
+    let k = Constants::new(chain, config, knots);
+    let (h, inv_h, cos_gate) = (k.h, k.inv_h, k.cos_gate);
     // Reuse the previous tables when their shape matches: no allocation per update.
     if out.len() != poses.len() || out.iter().any(|f| f.len() != knots) {
         out.clear();
@@ -134,7 +129,9 @@ pub fn frontier_surrogates(
             });
         }
         values.fill(0.0);
-        let to_motor = (pose.rotation * motor_base).inverse().to_rotation_matrix();
+        let to_motor = (pose.rotation * k.motor_base)
+            .inverse()
+            .to_rotation_matrix();
         let m = to_motor.matrix();
         let frame = Frame {
             p: Point3::from(pose.translation.vector),
@@ -142,12 +139,10 @@ pub fn frontier_surrogates(
                 [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
                 [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
             ],
-            two_s2,
-            cos_gate,
         };
         let mut total = 0.0;
         for chunk in targets.chunks(BLOCK) {
-            let n = block.fill(chunk, &frame);
+            let n = block.fill(chunk, &frame, &k);
             for (j, t) in chunk.iter().enumerate().take(n) {
                 let arg = block.arg[j];
                 // Below EXP_MIN (or NaN) e^arg is subnormal, zero or NaN: libm's exp keeps
@@ -240,10 +235,6 @@ struct Frame {
     p: Point3<f64>,
     /// First two rows of the world-to-motor-base rotation: only u_x, u_y are needed.
     rows: [[f64; 3]; 2],
-    /// 2σ².
-    two_s2: f64,
-    /// cos of the angular gate.
-    cos_gate: f64,
 }
 
 /// Per-target quantities of one step for a block of targets, structure-of-arrays so the
@@ -283,7 +274,7 @@ impl Block {
     /// every target gets every quantity (NaN where d = 0 or ρ = 0); the caller's gates decide
     /// which are used. Two loops, each with shorter dependency chains than one would have, so
     /// more iterations overlap.
-    fn fill(&mut self, chunk: &[FrontierTarget], f: &Frame) -> usize {
+    fn fill(&mut self, chunk: &[FrontierTarget], f: &Frame, k: &Constants) -> usize {
         let n = chunk.len().min(BLOCK);
         let chunk = &chunk[..n];
         let d_out = &mut self.d[..n];
@@ -302,7 +293,7 @@ impl Block {
             // The operation order of nalgebra's `norm` and `Rotation3 * Vector3`: the gates
             // compare bit for bit the numbers they always have.
             let d = ((vx * vx + vy * vy) + vz * vz).sqrt();
-            let arg = -d * d / f.two_s2;
+            let arg = -d * d / k.two_s2;
             d_out[j] = d;
             arg_out[j] = arg;
             let arg_in = if arg >= EXP_MIN { arg } else { EXP_MIN };
@@ -316,7 +307,7 @@ impl Block {
             rho_out[j] = rho;
             phi_out[j] = ux;
             uy_out[j] = uy;
-            delta_out[j] = (f.cos_gate / rho).clamp(-1.0, 1.0);
+            delta_out[j] = (k.cos_gate / rho).clamp(-1.0, 1.0);
         }
         for j in 0..n {
             phi_out[j] = fastmath::atan2(uy_out[j], phi_out[j]);
