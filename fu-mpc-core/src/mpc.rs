@@ -517,23 +517,19 @@ impl FuMpc {
         w.best[n - 1] = self.previous[n - 1];
         self.make_feasible(omega0, &mut w.best);
         let mut best_cost = self.total(theta0, omega0, &w.best, fisher, None);
-        let mut consider = |this: &Self, w: &mut Work| {
+        let consider = |this: &Self, w: &mut Work, best_cost: &mut f64| {
             let cc = this.total(theta0, omega0, &w.cand, fisher, None);
-            if cc < best_cost {
-                best_cost = cc;
+            if cc < *best_cost {
+                *best_cost = cc;
                 w.best.copy_from_slice(&w.cand);
             }
         };
         // Each candidate is built feasible (the clipping of `make_feasible` applied as it goes).
-        let inv_dt = 1.0 / c.dt;
         let fill = |cand: &mut [f64], cruise: f64, m: usize, stop: f64| {
             let mut speed = omega0;
             for (k, x) in cand.iter_mut().enumerate() {
                 let target = if k < m { cruise } else { stop };
-                let lo = ((l.omega_min() - speed) * inv_dt).max(-l.u_max());
-                let hi = ((l.omega_max() - speed) * inv_dt).min(l.u_max());
-                *x = ((target - speed) * inv_dt).clamp(lo, hi);
-                speed = (speed + *x * c.dt).clamp(l.omega_min(), l.omega_max());
+                *x = toward(&l, c.dt, &mut speed, target);
             }
         };
         for target in [
@@ -543,16 +539,37 @@ impl FuMpc {
             omega0,
         ] {
             fill(&mut w.cand, target, n, target);
-            consider(self, &mut w);
+            consider(self, &mut w, &mut best_cost);
         }
         // Cruise at ω0, ω_max or ω_min, then slow to the speed nearest zero from step m, so
         // a dwell at any reachable angle is among the starts (the surrogates have many local
         // minima; the linearised steps only refine).
         let stop = 0.0f64.clamp(l.omega_min(), l.omega_max());
         for cruise in [omega0, l.omega_max(), l.omega_min()] {
-            for m in (0..n).step_by(2) {
-                fill(&mut w.cand, cruise, m, stop);
-                consider(self, &mut w);
+            if self.combined_valid {
+                // The candidates of one cruise speed share their cruise phase: it is rolled
+                // out once, and each candidate continues from its state (the same operations
+                // in the same order as `fill` and `total`, so the same costs to the bit).
+                let mut head = Cruise::new(theta0, omega0);
+                for m in 0..n {
+                    if m % 2 == 0 {
+                        let mut tail = head;
+                        for k in m..n {
+                            tail.step(self, stop, k);
+                        }
+                        let cc = tail.cost + c.gamma * tail.smooth;
+                        if cc < best_cost {
+                            best_cost = cc;
+                            fill(&mut w.best, cruise, m, stop);
+                        }
+                    }
+                    head.step(self, cruise, m);
+                }
+            } else {
+                for m in (0..n).step_by(2) {
+                    fill(&mut w.cand, cruise, m, stop);
+                    consider(self, &mut w, &mut best_cost);
+                }
             }
         }
         self.solution.warm_start_cost = best_cost;
@@ -640,6 +657,60 @@ impl FuMpc {
     }
 }
 
+/// The control that moves `speed` toward `target` in one step as far as the limits allow,
+/// and the speed after it (clipped as [`FuMpc::make_feasible`] clips).
+#[inline]
+fn toward(l: &MotorLimits, dt: f64, speed: &mut f64, target: f64) -> f64 {
+    let inv_dt = 1.0 / dt;
+    let lo = ((l.omega_min() - *speed) * inv_dt).max(-l.u_max());
+    let hi = ((l.omega_max() - *speed) * inv_dt).min(l.u_max());
+    let x = ((target - *speed) * inv_dt).clamp(lo, hi);
+    *speed = (*speed + x * dt).clamp(l.omega_min(), l.omega_max());
+    x
+}
+
+/// The state of a warm-start candidate's rollout after some steps: the clipped speed of the
+/// candidate's construction and the running terms of [`FuMpc::total`] on the combined tables.
+#[derive(Debug, Clone, Copy)]
+struct Cruise {
+    speed: f64,
+    theta: f64,
+    omega: f64,
+    cost: f64,
+    smooth: f64,
+    prev: f64,
+}
+
+impl Cruise {
+    fn new(theta0: f64, omega0: f64) -> Self {
+        Self {
+            speed: omega0,
+            theta: theta0,
+            omega: omega0,
+            cost: 0.0,
+            smooth: 0.0,
+            prev: 0.0,
+        }
+    }
+
+    /// Step `k` toward speed `target`: the control of `fill`, then the terms of `total`.
+    fn step(&mut self, mpc: &FuMpc, target: f64, k: usize) {
+        let c = &mpc.config;
+        let x = toward(&c.limits, c.dt, &mut self.speed, target);
+        self.omega += x * c.dt; // eq. (11), inside the limits
+        self.theta += self.omega * c.dt; // eq. (12)
+        let (v, _) = mpc.combined[k].eval(self.theta);
+        self.cost += v;
+        if k == 0 {
+            // `total` starts from the sequence's first control: no change at step 0.
+            self.prev = x;
+        }
+        let du = x - self.prev;
+        self.smooth += du * du;
+        self.prev = x;
+    }
+}
+
 /// Number of proximal levels ρ·4^j the solver moves between.
 const PROXIMAL_LEVELS: usize = 5;
 
@@ -685,6 +756,65 @@ mod tests {
     use crate::FrontierTarget;
     use lidar_kinematics::MotorState;
     use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+    /// A cruise-then-stop candidate rolled out from the shared cruise phase costs, to the
+    /// bit, what the whole sequence costs.
+    #[test]
+    fn shared_cruise_phases_cost_what_whole_sequences_cost() {
+        let cfg = MpcConfig::default();
+        let n = cfg.horizon;
+        let mut mpc = FuMpc::new(cfg, KinematicChain::default()).unwrap();
+        let refs: Vec<_> = (0..=n)
+            .map(|i| {
+                let t = 0.1 * f64::from(u32::try_from(i).unwrap());
+                Isometry3::from_parts(
+                    Translation3::new(t, -0.4 * t, 0.2),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -0.5 * t),
+                )
+            })
+            .collect();
+        let targets = [
+            FrontierTarget {
+                center: Point3::new(2.0, 3.0, 0.5),
+                score: 10.0,
+            },
+            FrontierTarget {
+                center: Point3::new(-4.0, -1.0, 0.0),
+                score: 30.0,
+            },
+        ];
+        let input = ScanInput {
+            motor: MotorState::new(0.0, 0.0),
+            reference: &refs,
+            targets: &targets,
+            fisher: None,
+        };
+        mpc.build_surrogates(&input).unwrap();
+        let fisher =
+            PeriodicPwl::new((0..72).map(|c| 1.0 + (0.2 * f64::from(c)).cos()).collect()).unwrap();
+        mpc.build_combined(Some(&fisher)).unwrap();
+        let l = cfg.limits;
+        let mut u = vec![0.0; n];
+        for (theta0, omega0) in [(0.3, 1.0), (5.9, -3.1), (2.0, 0.0), (1.0, 3.0)] {
+            for cruise in [omega0, l.omega_max(), l.omega_min(), 0.5] {
+                let mut head = Cruise::new(theta0, omega0);
+                for m in 0..n {
+                    let mut tail = head;
+                    for k in m..n {
+                        tail.step(&mpc, 0.0, k);
+                    }
+                    let mut speed = omega0;
+                    for (k, x) in u.iter_mut().enumerate() {
+                        *x = toward(&l, cfg.dt, &mut speed, if k < m { cruise } else { 0.0 });
+                    }
+                    let whole = mpc.total(theta0, omega0, &u, Some(&fisher), None);
+                    let shared = tail.cost + cfg.gamma * tail.smooth;
+                    assert_eq!(shared.to_bits(), whole.to_bits(), "{m} {shared} {whole}");
+                    head.step(&mpc, cruise, m);
+                }
+            }
+        }
+    }
 
     /// The combined tables give the same total as the terms evaluated apart.
     #[test]
