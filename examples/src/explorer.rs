@@ -246,8 +246,8 @@ pub struct ExplorerConfig {
     /// instead of two. A cell a surface runs through is hit by the beams that end on it and
     /// missed by the beams that graze its free part on their way past; with the stronger miss
     /// the grazing beams won, the cell turned free, and its neighbour behind the surface,
-    /// which no beam reaches, stayed unknown: a frontier no viewpoint can clear. In the
-    /// sinkhole's seed 2 at 250 s that left 602 clusters (0.4), 248 (0.45), 92 (0.48).
+    /// which no beam reaches, stayed unknown: a frontier no viewpoint can clear (602 clusters
+    /// left at 250 s in the sinkhole's seed 2 with 0.4, 92 with 0.48; see the README).
     pub map: MapConfig,
     /// If positive, the deskewed frame is thinned to one point per voxel of this edge before
     /// it enters the map \[m\]; default 0 (every return). Thinning saves insertion time but
