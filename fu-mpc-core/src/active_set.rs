@@ -376,7 +376,7 @@ impl ActiveSet {
                 self.cum_p[j] = self.dt * cp;
                 self.cum_u[j] = self.dt * cu;
             }
-            let (alpha, blocking) = loop {
+            let alpha = loop {
                 let mut alpha = 1.0;
                 let mut blocking = None;
                 for j in 0..n {
@@ -401,23 +401,24 @@ impl ActiveSet {
                     }
                 }
                 let Some(r) = blocking else {
-                    break (alpha, None);
+                    break alpha;
                 };
                 self.working.push(r);
-                let independent = self.extend_factor();
+                if self.extend_factor() {
+                    // The blocking row joins the working set with its row of the factor,
+                    // the one the next multipliers would compute.
+                    break alpha;
+                }
                 self.working.pop();
                 self.factored = self.factored.min(self.working.len());
-                if independent || skipped == self.skip.len() {
-                    break (alpha, independent.then_some(r));
+                if skipped == self.skip.len() {
+                    break alpha;
                 }
                 self.skip[skipped] = r;
                 skipped += 1;
             };
             for i in 0..n {
                 u[i] += alpha * self.v[i];
-            }
-            if let Some(r) = blocking {
-                self.working.push(r);
             }
             // Keep active bounds on u exact, so rounding never leaves the box.
             for r in &self.working {
