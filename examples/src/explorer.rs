@@ -1121,15 +1121,22 @@ impl Explorer<'_> {
             }
         }
         self.graph.clear_temporary();
-        if chosen.is_none() {
-            for &i in tour.order.iter().filter(|&&i| i != 0).take(GRID_SEARCHES) {
-                let to = targets[i - 1].viewpoint;
-                if let Some(path) = grid_path(&self.map, &here, &to, c, GRID_EXPANSIONS) {
-                    self.join_path(&path)?;
-                    chosen = Some((i - 1, path.iter().map(arr).collect()));
-                    break;
-                }
-            }
+        // The first tour targets the grid search reaches at `clearance`: their index and path.
+        let first_grid_path = |map: &VoxelMap, clearance: f64| {
+            tour.order
+                .iter()
+                .filter(|&&i| i != 0)
+                .take(GRID_SEARCHES)
+                .find_map(|&i| {
+                    let to = targets[i - 1].viewpoint;
+                    grid_path(map, &here, &to, clearance, GRID_EXPANSIONS).map(|path| (i - 1, path))
+                })
+        };
+        if chosen.is_none()
+            && let Some((i, path)) = first_grid_path(&self.map, c)
+        {
+            self.join_path(&path)?;
+            chosen = Some((i, path.iter().map(arr).collect()));
         }
         if chosen.is_none() {
             for &i in tour.order.iter().filter(|&&i| i != 0).take(GRID_SEARCHES) {
@@ -1142,15 +1149,11 @@ impl Explorer<'_> {
         // Last, the grid search at the clearance trajectories must keep: cells seen after the
         // UAV came in (returns off a wall's edge that the weak miss keeps) can narrow a
         // pocket's way out below the planning clearance. Such paths do not join the graph.
-        if chosen.is_none() {
-            let squeeze = self.config.flight.radius + SAFETY_MARGIN;
-            for &i in tour.order.iter().filter(|&&i| i != 0).take(GRID_SEARCHES) {
-                let to = targets[i - 1].viewpoint;
-                if let Some(path) = grid_path(&self.map, &here, &to, squeeze, GRID_EXPANSIONS) {
-                    chosen = Some((i - 1, path.iter().map(arr).collect()));
-                    break;
-                }
-            }
+        if chosen.is_none()
+            && let Some((i, path)) =
+                first_grid_path(&self.map, self.config.flight.radius + SAFETY_MARGIN)
+        {
+            chosen = Some((i, path.iter().map(arr).collect()));
         }
         let Some((i, positions)) = chosen else {
             self.stalled_since.get_or_insert(t);
