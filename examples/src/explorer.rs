@@ -60,6 +60,14 @@ const GRID_SEARCHES: usize = 2;
 /// Cell expansions per grid search.
 const GRID_EXPANSIONS: usize = 60_000;
 
+/// Targets per planning cycle the last grid search, at the UAV's own clearance, tries.
+const SQUEEZE_SEARCHES: usize = 4;
+
+/// Cell expansions per grid search at the UAV's own clearance: a way up a shaft through a
+/// narrow opening floods much of the level below first (120,000–240,000 expansions in the
+/// sinkhole).
+const SQUEEZE_EXPANSIONS: usize = 250_000;
+
 /// A UAV that stays in a box of diagonal [`STUCK_SPAN`] this long while it has a target gives
 /// that target up \[s\].
 const STUCK_TIME: f64 = 30.0;
@@ -649,6 +657,24 @@ fn grid_path(
     Some(shortcut(map, &pts, clearance))
 }
 
+/// The [`grid_path`] to the first of the `tries` goals nearest to `from` in a straight line
+/// (ties by index) that one is found to within `max_expansions`: the goal's index and the path.
+fn nearest_grid_path(
+    map: &VoxelMap,
+    from: &Point3<f64>,
+    goals: &[Point3<f64>],
+    clearance: f64,
+    tries: usize,
+    max_expansions: usize,
+) -> Option<(usize, Vec<Point3<f64>>)> {
+    let mut order: Vec<usize> = (0..goals.len()).collect();
+    let d2 = |i: usize| (goals[i] - from).norm_squared();
+    order.sort_by(|&a, &b| d2(a).total_cmp(&d2(b)).then(a.cmp(&b)));
+    order.into_iter().take(tries).find_map(|i| {
+        grid_path(map, from, &goals[i], clearance, max_expansions).map(|path| (i, path))
+    })
+}
+
 /// A path from the UAV to `to` through the graph: a grid search from `to` to the nearest of
 /// the `reached` nodes (graph nodes the UAV reaches, each with its graph path from the UAV),
 /// then that node's graph path back to the UAV. A target the UAV's part of the graph never
@@ -1121,19 +1147,17 @@ impl Explorer<'_> {
             }
         }
         self.graph.clear_temporary();
-        // The first tour targets the grid search reaches at `clearance`: their index and path.
-        let first_grid_path = |map: &VoxelMap, clearance: f64| {
-            tour.order
+        // The first tour target the grid search reaches: its index and path.
+        if chosen.is_none()
+            && let Some((i, path)) = tour
+                .order
                 .iter()
                 .filter(|&&i| i != 0)
                 .take(GRID_SEARCHES)
                 .find_map(|&i| {
                     let to = targets[i - 1].viewpoint;
-                    grid_path(map, &here, &to, clearance, GRID_EXPANSIONS).map(|path| (i - 1, path))
+                    grid_path(&self.map, &here, &to, c, GRID_EXPANSIONS).map(|path| (i - 1, path))
                 })
-        };
-        if chosen.is_none()
-            && let Some((i, path)) = first_grid_path(&self.map, c)
         {
             self.join_path(&path)?;
             chosen = Some((i, path.iter().map(arr).collect()));
@@ -1149,11 +1173,19 @@ impl Explorer<'_> {
         // Last, the grid search at the clearance trajectories must keep: cells seen after the
         // UAV came in (returns off a wall's edge that the weak miss keeps) can narrow a
         // pocket's way out below the planning clearance. Such paths do not join the graph.
-        if chosen.is_none()
-            && let Some((i, path)) =
-                first_grid_path(&self.map, self.config.flight.radius + SAFETY_MARGIN)
-        {
-            chosen = Some((i, path.iter().map(arr).collect()));
+        // The nearest targets first, with a larger budget: the tour's order comes from graph
+        // costs, which say nothing of targets the graph does not reach.
+        if chosen.is_none() {
+            let views: Vec<Point3<f64>> = targets.iter().map(|t| t.viewpoint).collect();
+            chosen = nearest_grid_path(
+                &self.map,
+                &here,
+                &views,
+                self.config.flight.radius + SAFETY_MARGIN,
+                SQUEEZE_SEARCHES,
+                SQUEEZE_EXPANSIONS,
+            )
+            .map(|(i, path)| (i, path.iter().map(arr).collect()));
         }
         let Some((i, positions)) = chosen else {
             self.stalled_since.get_or_insert(t);
@@ -2081,6 +2113,27 @@ mod tests {
         for w in path.windows(2) {
             assert!(map.line_of_sight(&w[0], &w[1]), "{w:?}");
         }
+    }
+
+    #[test]
+    fn the_squeeze_search_tries_the_nearest_goals_first() {
+        let map = walled_map();
+        let from = Point3::new(2.0, 2.0, 1.5);
+        // Behind the wall (a long way round), then two in the open, the second nearer.
+        let behind = Point3::new(8.0, 2.0, 1.5);
+        let open = Point3::new(1.0, 3.5, 1.5);
+        let nearer = Point3::new(2.5, 3.0, 1.5);
+        let goals = [behind, open, nearer];
+        let (k, path) = nearest_grid_path(&map, &from, &goals, 0.5, 1, 200_000).unwrap();
+        assert_eq!(k, 2);
+        assert_eq!(path.last(), Some(&nearer));
+        // The goal behind the wall alone: found with a budget that covers the way round, not
+        // with one that does not, and not when it is beyond the number of tries.
+        let (k, _) = nearest_grid_path(&map, &from, &[behind], 0.5, 1, 200_000).unwrap();
+        assert_eq!(k, 0);
+        assert!(nearest_grid_path(&map, &from, &[behind], 0.5, 1, 50).is_none());
+        assert!(nearest_grid_path(&map, &from, &[open, behind], 0.5, 0, 200_000).is_none());
+        assert!(nearest_grid_path(&map, &from, &[], 0.5, 4, 200_000).is_none());
     }
 
     #[test]
