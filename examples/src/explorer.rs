@@ -68,6 +68,9 @@ const SQUEEZE_SEARCHES: usize = 4;
 /// sinkhole).
 const SQUEEZE_EXPANSIONS: usize = 250_000;
 
+/// Spacing of the points of the UAV's trail \[m\] (see [`trail_path`]).
+const TRAIL_SPACING: f64 = 1.0;
+
 /// A UAV that stays in a box of diagonal [`STUCK_SPAN`] this long while it has a target gives
 /// that target up \[s\].
 const STUCK_TIME: f64 = 30.0;
@@ -675,6 +678,55 @@ fn nearest_grid_path(
     })
 }
 
+/// A path from `from` back along `trail` (oldest first, its last point near `from`) to the
+/// trail's point nearest to one of `goals`, then a [`grid_path`] from there to the goal, all
+/// keeping `clearance` (near `from` as [`grid_path`] allows). The goals are tried in order of
+/// their distance to the trail, at most [`SQUEEZE_SEARCHES`] of them; a trail leg no longer
+/// free (the map has grown since) is replaced by a grid path, or the goal is passed over.
+/// Returns the goal's index and the path, shortened.
+fn trail_path(
+    map: &VoxelMap,
+    trail: &[Point3<f64>],
+    from: &Point3<f64>,
+    goals: &[Point3<f64>],
+    clearance: f64,
+) -> Option<(usize, Vec<Point3<f64>>)> {
+    // Each goal's nearest trail point, the latest of equals (the shortest way back).
+    let nearest = |g: &Point3<f64>| {
+        trail
+            .iter()
+            .enumerate()
+            .map(|(j, q)| ((q - g).norm_squared(), j))
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)))
+    };
+    let mut order: Vec<(f64, usize, usize)> = goals
+        .iter()
+        .enumerate()
+        .filter_map(|(i, g)| nearest(g).map(|(d2, j)| (d2, i, j)))
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    order
+        .into_iter()
+        .take(SQUEEZE_SEARCHES)
+        .find_map(|(_, i, j)| {
+            let last = grid_path(map, &trail[j], &goals[i], clearance, GRID_EXPANSIONS)?;
+            let mut back: Vec<Point3<f64>> = vec![*from];
+            back.extend(trail[j..].iter().rev());
+            let mut pts = vec![*from];
+            for (k, w) in back.windows(2).enumerate() {
+                let relaxed = if k == 0 { ESCAPE_RADIUS } else { 0.0 };
+                if segment_free(map, &w[0], &w[1], clearance, relaxed) {
+                    pts.push(w[1]);
+                } else {
+                    let leg = grid_path(map, &w[0], &w[1], clearance, GRID_EXPANSIONS)?;
+                    pts.extend(leg.into_iter().skip(1));
+                }
+            }
+            pts.extend(last.into_iter().skip(1));
+            Some((i, shortcut(map, &pts, clearance)))
+        })
+}
+
 /// A path from the UAV to `to` through the graph: a grid search from `to` to the nearest of
 /// the `reached` nodes (graph nodes the UAV reaches, each with its graph path from the UAV),
 /// then that node's graph path back to the UAV. A target the UAV's part of the graph never
@@ -958,6 +1010,9 @@ struct Explorer<'a> {
     /// The clusters the mission asks for, as of the last map update: the planner and the
     /// scan targets share one evaluation per frame.
     mission: MissionCache,
+    /// The UAV's planned positions at the planning cycles, [`TRAIL_SPACING`] apart: a way
+    /// back to where it has been when neither graph nor grid search finds one.
+    trail: Vec<Point3<f64>>,
 }
 
 impl Explorer<'_> {
@@ -1013,6 +1068,13 @@ impl Explorer<'_> {
         // the UAV gets anywhere, and choosing it again would hold the UAV there for the rest
         // of the run.
         let stuck = self.headway.stuck(&here, t);
+        if self
+            .trail
+            .last()
+            .is_none_or(|q| (q - here).norm() >= TRAIL_SPACING)
+        {
+            self.trail.push(here);
+        }
         // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
         // and the tour is planned where the UAV can act next.
         let mut clusters: Vec<&frontier::Cluster> = self
@@ -1184,6 +1246,19 @@ impl Explorer<'_> {
                 self.config.flight.radius + SAFETY_MARGIN,
                 SQUEEZE_SEARCHES,
                 SQUEEZE_EXPANSIONS,
+            )
+            .map(|(i, path)| (i, path.iter().map(arr).collect()));
+        }
+        // Then back along the trail to where it came nearest to a target: the UAV flew
+        // there, through openings a grid search may need millions of expansions to find.
+        if chosen.is_none() {
+            let views: Vec<Point3<f64>> = targets.iter().map(|t| t.viewpoint).collect();
+            chosen = trail_path(
+                &self.map,
+                &self.trail,
+                &here,
+                &views,
+                self.config.flight.radius + SAFETY_MARGIN,
             )
             .map(|(i, path)| (i, path.iter().map(arr).collect()));
         }
@@ -1447,6 +1522,7 @@ pub fn explore(
         },
         target: None,
         stalled_since: None,
+        trail: Vec::new(),
         exhausted: Vec::new(),
         arrival: None,
         headway: Headway::default(),
@@ -2134,6 +2210,39 @@ mod tests {
         assert!(nearest_grid_path(&map, &from, &[behind], 0.5, 1, 50).is_none());
         assert!(nearest_grid_path(&map, &from, &[open, behind], 0.5, 0, 200_000).is_none());
         assert!(nearest_grid_path(&map, &from, &[], 0.5, 4, 200_000).is_none());
+    }
+
+    #[test]
+    fn trail_paths_go_back_the_way_the_uav_came() {
+        let map = walled_map();
+        let from = Point3::new(2.0, 2.0, 1.5);
+        let goal = Point3::new(8.5, 1.5, 1.5);
+        let check = |path: &[Point3<f64>]| {
+            assert_eq!(path.first(), Some(&from));
+            assert_eq!(path.last(), Some(&goal));
+            assert!(path.iter().any(|p| p.y > 4.0), "{path:?}");
+            for w in path.windows(2) {
+                assert!(segment_free(&map, &w[0], &w[1], 0.5, 0.0), "{w:?}");
+            }
+        };
+        // Came from behind the wall through the gap; a second goal farther from the trail.
+        let trail = [
+            Point3::new(8.0, 2.0, 1.5),
+            Point3::new(7.0, 5.0, 1.5),
+            Point3::new(5.0, 5.0, 1.5),
+            Point3::new(3.0, 5.0, 1.5),
+            Point3::new(2.0, 2.5, 1.5),
+        ];
+        let far = Point3::new(9.0, 0.8, 1.5);
+        let (k, path) = trail_path(&map, &trail, &from, &[far, goal], 0.5).unwrap();
+        assert_eq!(k, 1);
+        check(&path);
+        // A trail leg through the wall (the map grew since) is replaced by a grid path.
+        let (k, path) = trail_path(&map, &trail[..1], &from, &[goal], 0.5).unwrap();
+        assert_eq!(k, 0);
+        check(&path);
+        assert!(trail_path(&map, &[], &from, &[goal], 0.5).is_none());
+        assert!(trail_path(&map, &trail, &from, &[], 0.5).is_none());
     }
 
     #[test]
