@@ -544,7 +544,12 @@ mod tests {
         InformationMap::diagonal(cells, info).unwrap()
     }
 
-    /// Central differences of r over every control component that moves.
+    /// Central differences of r over every control component that moves, with steps of 1e-5
+    /// and, if those miss, 1e-6: the SDFs have ridges (a cone's axis, where the nearest edge
+    /// changes), and a map cell within a step of one bends the difference quotient while
+    /// the gradient at the point itself is right (the random case
+    /// `seed = 11472059390893309169` missed by 5.9e-5 relative at 1e-5 and matched to about
+    /// 1e-7 at 1e-6). A wrong gradient misses at both steps.
     fn check_fd<F: FovSdf>(
         icr: &mut Icr<F>,
         map: &InformationMap,
@@ -554,32 +559,37 @@ mod tests {
     ) -> std::result::Result<(), TestCaseError> {
         let mut grad = vec![Vector6::zeros(); u.len()];
         icr.reward_and_gradient(map, start, u, &mut grad).unwrap();
-        let h = 1e-5;
-        let (mut num, mut ana) = (Vec::new(), Vec::new());
-        for k in 0..u.len() {
-            for &i in components {
-                let mut up = u.to_vec();
-                let mut dn = u.to_vec();
-                up[k][i] += h;
-                dn[k][i] -= h;
-                let fd = (icr.reward(map, start, &up).unwrap()
-                    - icr.reward(map, start, &dn).unwrap())
-                    / (2.0 * h);
-                num.push(fd);
-                ana.push(grad[k][i]);
+        let mut misses = Vec::new();
+        for h in [1e-5, 1e-6] {
+            let (mut num, mut ana) = (Vec::new(), Vec::new());
+            for k in 0..u.len() {
+                for &i in components {
+                    let mut up = u.to_vec();
+                    let mut dn = u.to_vec();
+                    up[k][i] += h;
+                    dn[k][i] -= h;
+                    let fd = (icr.reward(map, start, &up).unwrap()
+                        - icr.reward(map, start, &dn).unwrap())
+                        / (2.0 * h);
+                    num.push(fd);
+                    ana.push(grad[k][i]);
+                }
             }
+            let err: f64 = num
+                .iter()
+                .zip(&ana)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let norm: f64 = num.iter().map(|a| a * a).sum::<f64>().sqrt();
+            if err <= 1e-5 * norm.max(1e-8) {
+                return Ok(());
+            }
+            misses.push(format!(
+                "h {h:e}: error {err} vs norm {norm}\n{num:?}\n{ana:?}"
+            ));
         }
-        let err: f64 = num
-            .iter()
-            .zip(&ana)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let norm: f64 = num.iter().map(|a| a * a).sum::<f64>().sqrt();
-        prop_assert!(
-            err <= 1e-5 * norm.max(1e-8),
-            "error {err} vs norm {norm}\n{num:?}\n{ana:?}"
-        );
+        prop_assert!(false, "{}", misses.join("\n"));
         Ok(())
     }
 
