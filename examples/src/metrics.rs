@@ -130,6 +130,27 @@ pub fn trajectory_length(points: &[Point3<f64>]) -> f64 {
     points.windows(2).map(|w| (w[1] - w[0]).norm()).sum()
 }
 
+/// The first time a coverage series reaches `level` (same units as the series), or `None`
+/// if it never does. Samples with a NaN time or coverage are passed over.
+///
+/// A run's exploration time counts until its planner runs out of targets, which in a scene
+/// with frontier no view clears (cells behind a surface, say) comes long after the scene is
+/// seen; the time to 99 % compares how fast controllers see it.
+///
+/// # Example
+/// ```
+/// use fu_mpc_examples::metrics::time_to_coverage;
+/// let series = [(0.0, 0.1), (1.0, 0.5), (2.0, 0.995), (3.0, 1.0)];
+/// assert_eq!(time_to_coverage(&series, 0.99), Some(2.0));
+/// assert_eq!(time_to_coverage(&series[..2], 0.99), None);
+/// ```
+pub fn time_to_coverage(series: &[(f64, f64)], level: f64) -> Option<f64> {
+    series
+        .iter()
+        .find(|(t, c)| !t.is_nan() && *c >= level)
+        .map(|&(t, _)| t)
+}
+
 /// Writes poses in the TUM format: `time tx ty tz qx qy qz qw`, one per line.
 ///
 /// # Errors
@@ -174,6 +195,24 @@ fn check(a: &[Point3<f64>], b: &[Point3<f64>], needed: usize) -> Result<(), Metr
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn time_to_coverage_takes_the_first_sample_at_the_level() {
+        let series = [
+            (0.0, 0.2),
+            (1.0, f64::NAN),
+            (f64::NAN, 0.99),
+            (2.0, 0.989),
+            (3.0, 0.99),
+            (4.0, 0.98),
+            (5.0, 1.0),
+        ];
+        assert_eq!(time_to_coverage(&series, 0.99), Some(3.0));
+        assert_eq!(time_to_coverage(&series, 1.0), Some(5.0));
+        assert_eq!(time_to_coverage(&series, 0.1), Some(0.0));
+        assert_eq!(time_to_coverage(&series, 1.5), None);
+        assert_eq!(time_to_coverage(&[], 0.5), None);
+    }
 
     proptest! {
         #[test]

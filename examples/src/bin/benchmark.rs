@@ -17,7 +17,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore};
-use fu_mpc_examples::metrics::write_tum;
+use fu_mpc_examples::metrics::{time_to_coverage, write_tum};
 use fu_mpc_examples::plot::{LinePlot, PALETTE, Series};
 use fu_mpc_examples::report::{Report, write_pictures};
 use fu_mpc_examples::setup::load_scene;
@@ -203,7 +203,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     writeln!(
         md,
         "Means over seeds {:?}; time budget {} s. Exploration time and trajectory length are \
-         averaged over finished runs only (— when none finished).{}\n",
+         averaged over finished runs only (— when none finished); the time to 99 % coverage \
+         over the runs that reached it (how many in brackets).{}\n",
         args.seeds,
         args.max_time,
         if args.clear_no_return {
@@ -221,8 +222,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             y_range: Some((0.0, 100.0)),
         };
         writeln!(md, "## {scene_spec}\n")?;
-        md += "| controller | finished | exploration time (s) | trajectory length (m) | coverage (%) | APE RMSE (m) | APE mean (m) | APE max (m) | collisions | real-time factor |\n";
-        md += "|---|---|---|---|---|---|---|---|---|---|\n";
+        md += "| controller | finished | exploration time (s) | 99 % seen at (s) | trajectory length (m) | coverage (%) | APE RMSE (m) | APE mean (m) | APE max (m) | collisions | real-time factor |\n";
+        md += "|---|---|---|---|---|---|---|---|---|---|---|\n";
         for (ci, controller) in args.controllers.iter().enumerate() {
             let summaries: Vec<Value> = args
                 .seeds
@@ -259,9 +260,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             };
             let collisions: f64 = summaries.iter().map(|v| f(v, "collisions")).sum();
+            // The time to 99 % from each run's coverage series, over the runs that got there.
+            let at99: Vec<f64> = args
+                .seeds
+                .iter()
+                .filter_map(|&seed| {
+                    let dir = run_dir(
+                        &args.out,
+                        scene_spec,
+                        controller,
+                        seed,
+                        args.clear_no_return,
+                    );
+                    time_to_coverage(&read_coverage(&dir.join("coverage.csv")), 99.0)
+                })
+                .collect();
+            let at99 = if at99.is_empty() {
+                "—".to_string()
+            } else {
+                format!("{:.1} ({}/{})", mean(&at99), at99.len(), summaries.len())
+            };
             writeln!(
                 md,
-                "| {controller} | {}/{} | {} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {collisions} | {:.1} |",
+                "| {controller} | {}/{} | {} | {at99} | {} | {:.1} | {:.3} | {:.3} | {:.3} | {collisions} | {:.1} |",
                 done.len(),
                 summaries.len(),
                 fin("exploration_time_s"),
