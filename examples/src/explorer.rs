@@ -1239,27 +1239,18 @@ impl Explorer<'_> {
         // costs, which say nothing of targets the graph does not reach.
         if chosen.is_none() {
             let views: Vec<Point3<f64>> = targets.iter().map(|t| t.viewpoint).collect();
+            let squeeze = self.config.flight.radius + SAFETY_MARGIN;
             chosen = nearest_grid_path(
                 &self.map,
                 &here,
                 &views,
-                self.config.flight.radius + SAFETY_MARGIN,
+                squeeze,
                 SQUEEZE_SEARCHES,
                 SQUEEZE_EXPANSIONS,
             )
-            .map(|(i, path)| (i, path.iter().map(arr).collect()));
-        }
-        // Then back along the trail to where it came nearest to a target: the UAV flew
-        // there, through openings a grid search may need millions of expansions to find.
-        if chosen.is_none() {
-            let views: Vec<Point3<f64>> = targets.iter().map(|t| t.viewpoint).collect();
-            chosen = trail_path(
-                &self.map,
-                &self.trail,
-                &here,
-                &views,
-                self.config.flight.radius + SAFETY_MARGIN,
-            )
+            // Then back along the trail to where it came nearest to a target: the UAV flew
+            // there, through openings a grid search may need millions of expansions to find.
+            .or_else(|| trail_path(&self.map, &self.trail, &here, &views, squeeze))
             .map(|(i, path)| (i, path.iter().map(arr).collect()));
         }
         let Some((i, positions)) = chosen else {

@@ -225,19 +225,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         md += "| controller | finished | exploration time (s) | 99 % seen at (s) | trajectory length (m) | coverage (%) | APE RMSE (m) | APE mean (m) | APE max (m) | collisions | real-time factor |\n";
         md += "|---|---|---|---|---|---|---|---|---|---|---|\n";
         for (ci, controller) in args.controllers.iter().enumerate() {
-            let summaries: Vec<Value> = args
+            let dirs: Vec<PathBuf> = args
                 .seeds
                 .iter()
-                .filter_map(|&seed| {
-                    let p = run_dir(
+                .map(|&seed| {
+                    run_dir(
                         &args.out,
                         scene_spec,
                         controller,
                         seed,
                         args.clear_no_return,
                     )
-                    .join("summary.json");
-                    serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok()
+                })
+                .collect();
+            let summaries: Vec<Value> = dirs
+                .iter()
+                .filter_map(|dir| {
+                    let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
+                    serde_json::from_str(&text).ok()
                 })
                 .collect();
             if summaries.is_empty() {
@@ -261,19 +266,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             };
             let collisions: f64 = summaries.iter().map(|v| f(v, "collisions")).sum();
             // The time to 99 % from each run's coverage series, over the runs that got there.
-            let at99: Vec<f64> = args
-                .seeds
+            let at99: Vec<f64> = dirs
                 .iter()
-                .filter_map(|&seed| {
-                    let dir = run_dir(
-                        &args.out,
-                        scene_spec,
-                        controller,
-                        seed,
-                        args.clear_no_return,
-                    );
-                    time_to_coverage(&read_coverage(&dir.join("coverage.csv")), 99.0)
-                })
+                .filter_map(|dir| time_to_coverage(&read_coverage(&dir.join("coverage.csv")), 99.0))
                 .collect();
             let at99 = if at99.is_empty() {
                 "—".to_string()
@@ -293,14 +288,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 all("ape_max_m"),
                 all("realtime_factor"),
             )?;
-            if let Some(&seed) = args.seeds.first() {
-                let dir = run_dir(
-                    &args.out,
-                    scene_spec,
-                    controller,
-                    seed,
-                    args.clear_no_return,
-                );
+            if let Some(dir) = dirs.first() {
                 plot.series.push(Series {
                     label: controller.to_string(),
                     color: PALETTE[ci % PALETTE.len()],
