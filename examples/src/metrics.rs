@@ -131,7 +131,8 @@ pub fn trajectory_length(points: &[Point3<f64>]) -> f64 {
 }
 
 /// The first time a coverage series reaches `level` (same units as the series), or `None`
-/// if it never does. Samples with a NaN time or coverage are passed over.
+/// if it never does (a NaN `level` never is). Samples with a NaN time or coverage are passed
+/// over.
 ///
 /// A run's exploration time counts until its planner runs out of targets, which in a scene
 /// with frontier no view clears (cells behind a surface, say) comes long after the scene is
@@ -212,6 +213,7 @@ mod tests {
         assert_eq!(time_to_coverage(&series, 0.1), Some(0.0));
         assert_eq!(time_to_coverage(&series, 1.5), None);
         assert_eq!(time_to_coverage(&[], 0.5), None);
+        assert_eq!(time_to_coverage(&series, f64::NAN), None);
     }
 
     proptest! {
