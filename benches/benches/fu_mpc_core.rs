@@ -120,6 +120,40 @@ fn bench_surrogates(c: &mut Criterion) {
     });
 }
 
+/// 300 targets spread along a 120 m × 20 m × 8 m hall (the maze's size), the UAV near its
+/// middle: as in a large map, most targets are beyond the 15 m distance gate.
+fn spread_targets(n: usize) -> Vec<FrontierTarget> {
+    let mut r = Lcg(11);
+    (0..n)
+        .map(|_| FrontierTarget {
+            center: Point3::new(
+                120.0 * r.next() - 60.0,
+                20.0 * r.next() - 10.0,
+                8.0 * r.next() - 4.0,
+            ),
+            score: 100.0 * r.next(),
+        })
+        .collect()
+}
+
+fn bench_surrogates_spread(c: &mut Criterion) {
+    let chain = KinematicChain::default();
+    let refs = reference(20, 0.1);
+    let t = spread_targets(300);
+    let cfg = UtilityConfig::default();
+    let mut out = Vec::new();
+    c.bench_function(
+        "frontier_surrogates_300_spread_targets_21_steps_72_knots",
+        |b| {
+            b.iter(|| {
+                frontier_surrogates(&chain, black_box(&refs), black_box(&t), &cfg, 72, &mut out)
+                    .unwrap();
+                black_box(&out);
+            });
+        },
+    );
+}
+
 fn bench_mpc(c: &mut Criterion) {
     let chain = KinematicChain::default();
     let cfg = MpcConfig::default();
@@ -239,6 +273,7 @@ criterion_group!(
     benches,
     bench_fisher,
     bench_surrogates,
+    bench_surrogates_spread,
     bench_mpc,
     bench_icr_scan,
     bench_icr

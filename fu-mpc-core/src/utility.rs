@@ -142,7 +142,7 @@ pub fn frontier_surrogates(
         };
         let mut total = 0.0;
         for chunk in targets.chunks(BLOCK) {
-            let n = block.fill(chunk, &frame, &k);
+            let n = block.fill(chunk, &frame, &k, config.max_distance);
             for (j, t) in chunk.iter().enumerate().take(n) {
                 let arg = block.arg[j];
                 // Below EXP_MIN (or NaN) e^arg is subnormal, zero or NaN: libm's exp keeps
@@ -162,12 +162,14 @@ pub fn frontier_surrogates(
                     values.iter_mut().for_each(|x| *x += r);
                     continue;
                 }
-                let rho = block.rho[j];
+                // 0 < d ≤ max_distance here, so the angular quantities were computed.
+                let s = block.slot[j];
+                let rho = block.rho[s];
                 if rho < cos_gate || rho == 0.0 {
                     continue;
                 }
-                let phi = block.phi[j];
-                let delta = block.delta[j];
+                let phi = block.phi[s];
+                let delta = block.delta[s];
                 // Knots within δ + h/2 of φ get a non-zero weight.
                 let reach = delta + 0.5 * h;
                 if reach >= PI {
@@ -246,7 +248,8 @@ struct Block {
     arg: [f64; BLOCK],
     /// r = exp(arg) s, valid where arg ≥ [`EXP_MIN`].
     r: [f64; BLOCK],
-    /// Length ρ of the in-plane part of the unit direction in the motor base frame.
+    /// Length ρ of the in-plane part of the unit direction in the motor base frame (this and
+    /// the next three are packed: target j's at `slot[j]`).
     rho: [f64; BLOCK],
     /// Azimuth φ of that direction (its x component u_x until the second loop).
     phi: [f64; BLOCK],
@@ -255,6 +258,9 @@ struct Block {
     /// Half-width δ of the arc of motor angles that passes the angular gate (its cosine
     /// until the second loop).
     delta: [f64; BLOCK],
+    /// Where target j's ρ, φ and δ are: the angular quantities are computed only for the
+    /// targets within the distance gate, packed at the front of their arrays.
+    slot: [usize; BLOCK],
 }
 
 impl Block {
@@ -267,24 +273,26 @@ impl Block {
             phi: [0.0; BLOCK],
             uy: [0.0; BLOCK],
             delta: [0.0; BLOCK],
+            slot: [0; BLOCK],
         }
     }
 
-    /// Fills the first `n = min(chunk.len(), BLOCK)` entries, returning `n`. Branch-free:
-    /// every target gets every quantity (NaN where d = 0 or ρ = 0); the caller's gates decide
-    /// which are used. Two loops, each with shorter dependency chains than one would have, so
-    /// more iterations overlap.
-    fn fill(&mut self, chunk: &[FrontierTarget], f: &Frame, k: &Constants) -> usize {
+    /// Fills the first `n = min(chunk.len(), BLOCK)` entries, returning `n`: d and r for
+    /// every target, ρ, φ and δ (at `slot[j]`) for those with 0 < d ≤ `max_distance`, the
+    /// only ones the gates can pass (in a large map most targets are beyond the distance gate
+    /// and count only in R_total). Branch-free passes (NaN where ρ = 0; the caller's gates
+    /// decide which values are used), each with shorter dependency chains than one loop
+    /// would have, so more iterations overlap.
+    fn fill(
+        &mut self,
+        chunk: &[FrontierTarget],
+        f: &Frame,
+        k: &Constants,
+        max_distance: f64,
+    ) -> usize {
         let n = chunk.len().min(BLOCK);
         let chunk = &chunk[..n];
-        let d_out = &mut self.d[..n];
-        let arg_out = &mut self.arg[..n];
-        let r_out = &mut self.r[..n];
-        let rho_out = &mut self.rho[..n];
-        let phi_out = &mut self.phi[..n];
-        let uy_out = &mut self.uy[..n];
-        let delta_out = &mut self.delta[..n];
-        let [a, b] = f.rows;
+        // The offset c − p goes into ρ, φ, u_y and d into δ until they are packed.
         for j in 0..n {
             let t = &chunk[j];
             let vx = t.center.x - f.p.x;
@@ -294,24 +302,55 @@ impl Block {
             // compare bit for bit the numbers they always have.
             let d = ((vx * vx + vy * vy) + vz * vz).sqrt();
             let arg = -d * d / k.two_s2;
-            d_out[j] = d;
-            arg_out[j] = arg;
+            self.d[j] = d;
+            self.arg[j] = arg;
             let arg_in = if arg >= EXP_MIN { arg } else { EXP_MIN };
-            r_out[j] = fastmath::exp_in_range(arg_in) * t.score; // eq. (17)
+            self.r[j] = fastmath::exp_in_range(arg_in) * t.score; // eq. (17)
+            self.rho[j] = vx;
+            self.phi[j] = vy;
+            self.uy[j] = vz;
+            self.delta[j] = d;
+        }
+        let gated = |d: f64| (d.is_nan() || d <= max_distance) && d != 0.0;
+        let mut m = self.d[..n].iter().filter(|&&d| gated(d)).count();
+        if 4 * m >= 3 * n {
+            // Mostly within the gate: packing would cost more than it saves; every target
+            // gets the angular quantities, in place.
+            m = n;
+            for (j, s) in self.slot[..n].iter_mut().enumerate() {
+                *s = j;
+            }
+        } else {
+            // Packing in place: slot[j] ≤ j, so no entry is overwritten before it is moved.
+            m = 0;
+            for j in 0..n {
+                self.slot[j] = m;
+                self.rho[m] = self.rho[j];
+                self.phi[m] = self.phi[j];
+                self.uy[m] = self.uy[j];
+                self.delta[m] = self.delta[j];
+                m += usize::from(gated(self.d[j]));
+            }
+        }
+        let [a, b] = f.rows;
+        let (rho, phi) = (&mut self.rho[..m], &mut self.phi[..m]);
+        let (uy, delta) = (&mut self.uy[..m], &mut self.delta[..m]);
+        for i in 0..m {
+            let d = delta[i];
             // Direction in the motor base frame: d_k(θ) = (cos θ, sin θ, 0) there, so
             // cos∠ = ρ cos(θ − φ) with ρ the length of the in-plane part.
-            let (wx, wy, wz) = (vx / d, vy / d, vz / d);
+            let (wx, wy, wz) = (rho[i] / d, phi[i] / d, uy[i] / d);
             let ux = (a[0] * wx + a[1] * wy) + a[2] * wz;
-            let uy = (b[0] * wx + b[1] * wy) + b[2] * wz;
-            let rho = (ux * ux + uy * uy).sqrt();
-            rho_out[j] = rho;
-            phi_out[j] = ux;
-            uy_out[j] = uy;
-            delta_out[j] = (k.cos_gate / rho).clamp(-1.0, 1.0);
+            let vy = (b[0] * wx + b[1] * wy) + b[2] * wz;
+            let r = (ux * ux + vy * vy).sqrt();
+            rho[i] = r;
+            phi[i] = ux;
+            uy[i] = vy;
+            delta[i] = (k.cos_gate / r).clamp(-1.0, 1.0);
         }
-        for j in 0..n {
-            phi_out[j] = fastmath::atan2(uy_out[j], phi_out[j]);
-            delta_out[j] = fastmath::acos(delta_out[j]);
+        for i in 0..m {
+            phi[i] = fastmath::atan2(uy[i], phi[i]);
+            delta[i] = fastmath::acos(delta[i]);
         }
         n
     }
