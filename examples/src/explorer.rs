@@ -105,6 +105,10 @@ const ESCAPE_RADIUS: f64 = 1.0;
 /// [`safest`]).
 const ESCAPE_STEP: f64 = 1.0;
 
+/// Plans in a row that fly a short move instead of the way to the same target before the
+/// target is given up.
+const ESCAPE_LIMIT: usize = 5;
+
 /// Errors of an exploration run.
 #[derive(Debug, thiserror::Error)]
 pub enum ExploreError {
@@ -1002,6 +1006,8 @@ struct Explorer<'a> {
     exhausted: Vec<Point3<f64>>,
     /// When the UAV reached the viewpoint it now hovers at.
     arrival: Option<f64>,
+    /// Plans in a row that flew a short move instead of the way to their target.
+    escapes: Escapes,
     /// Whether the UAV makes headway toward its targets.
     headway: Headway,
     last_targets: usize,
@@ -1284,6 +1290,7 @@ impl Explorer<'_> {
         cfg.corridor_radius = Some(self.config.corridor);
         cfg.waypoint_weight = 1e4;
         let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
+        let mut escaped = false;
         let traj = if at_rest && (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
             // Already there: after a second of looking, a frontier that stays is out of view
             // from here; do not come back for it.
@@ -1313,7 +1320,7 @@ impl Explorer<'_> {
                     Some(second)
                 } else if force || self.reference.traj.is_none() || self.reference.done(t) {
                     // It will be flown whatever it is: fly the one that keeps the most room.
-                    Some(safest(
+                    let (traj, escape) = safest(
                         &self.map,
                         self.config.flight.radius,
                         &here,
@@ -1321,7 +1328,9 @@ impl Explorer<'_> {
                         cfg,
                         first,
                         second,
-                    )?)
+                    )?;
+                    escaped = escape;
+                    Some(traj)
                 } else {
                     Some(first)
                 }
@@ -1341,6 +1350,15 @@ impl Explorer<'_> {
         }
         if traj.is_some() {
             self.arrival = None;
+        }
+        // Short moves away from walls instead of the way to the same target, again and
+        // again: its way is too narrow to fly, and the moves drift about (in the sinkhole
+        // for over 100 s); the target is given up like an exhausted one.
+        if self
+            .escapes
+            .record(&target.viewpoint, escaped, traj.is_some())
+        {
+            self.exhausted.push(target.viewpoint);
         }
         self.reference.traj = traj;
         self.reference.t0 = t;
@@ -1384,12 +1402,46 @@ impl Explorer<'_> {
     }
 }
 
+/// Counts the plans in a row that fly a short move away from walls (see [`safest`]) instead
+/// of the way to the same target.
+#[derive(Debug, Default)]
+struct Escapes {
+    /// The target's viewpoint and the count.
+    last: Option<(Point3<f64>, usize)>,
+}
+
+impl Escapes {
+    /// Records a plan for the target at `viewpoint`: whether it `escaped` and whether it
+    /// `flew` anything. Returns `true` when the target is to be given up: the
+    /// [`ESCAPE_LIMIT`]-th short move in a row for targets within [`KEEP_RADIUS`] of each
+    /// other. A plan that flies the way to its target, or a move for another target, starts
+    /// the count again.
+    fn record(&mut self, viewpoint: &Point3<f64>, escaped: bool, flew: bool) -> bool {
+        if !escaped {
+            if flew {
+                self.last = None;
+            }
+            return false;
+        }
+        let count = match self.last {
+            Some((vp, n)) if (vp - viewpoint).norm() < KEEP_RADIUS => n + 1,
+            _ => 1,
+        };
+        if count >= ESCAPE_LIMIT {
+            self.last = None;
+            return true;
+        }
+        self.last = Some((*viewpoint, count));
+        false
+    }
+}
+
 /// Of `first`, `second` and short moves from `here` (state `head`) to rest at the 26 points
 /// [`ESCAPE_STEP`] away in line of sight through known-free cells, the trajectory whose
 /// least clearance to a known obstacle is largest, then whose end has the most clearance
-/// (the first of equals): for a replan
-/// that must fly something while every planned trajectory comes too close. A UAV that
-/// finds itself too near a floor or wall backs away, and plans again from there.
+/// (the first of equals), and whether it is one of the short moves: for a replan that must
+/// fly something while every planned trajectory comes too close. A UAV that finds itself
+/// too near a floor or wall backs away, and plans again from there.
 fn safest(
     map: &VoxelMap,
     radius: f64,
@@ -1398,7 +1450,7 @@ fn safest(
     cfg: OptimizerConfig,
     first: Trajectory<3>,
     second: Trajectory<3>,
-) -> Result<Trajectory<3>, ExploreError> {
+) -> Result<(Trajectory<3>, bool), ExploreError> {
     let mut candidates = vec![second];
     let steps = [-1.0, 0.0, 1.0];
     for dz in steps {
@@ -1431,14 +1483,14 @@ fn safest(
             map.clearance(&end, 4.0 * margin),
         ))
     };
-    let mut best = (room(&first)?, first);
-    for traj in candidates {
+    let mut best = (room(&first)?, first, false);
+    for (i, traj) in candidates.into_iter().enumerate() {
         let r = room(&traj)?;
         if r > best.0 {
-            best = (r, traj);
+            best = (r, traj, i > 0);
         }
     }
-    Ok(best.1)
+    Ok((best.1, best.2))
 }
 
 /// The least clearance to a known obstacle along `traj` (sampled every 0.05 s), up to
@@ -1516,6 +1568,7 @@ pub fn explore(
         trail: Vec::new(),
         exhausted: Vec::new(),
         arrival: None,
+        escapes: Escapes::default(),
         headway: Headway::default(),
         last_targets: 0,
         region: (mission.min, mission.max),
@@ -2288,15 +2341,49 @@ mod tests {
         // Planned trajectories that sink toward the floor: the move straight up wins.
         let low = to(Point3::new(4.0, 3.0, 0.25));
         assert!(least_clearance(&map, &low, cap).unwrap() < start - 0.05);
-        let chosen = safest(&map, radius, &here, rest, cfg, low.clone(), low.clone()).unwrap();
+        let (chosen, escape) =
+            safest(&map, radius, &here, rest, cfg, low.clone(), low.clone()).unwrap();
+        assert!(escape);
         assert!((end(&chosen) - Point3::new(2.0, 3.0, 1.32)).norm() < 1e-6);
         let least = least_clearance(&map, &chosen, cap).unwrap();
         assert!((least - start).abs() < 1e-9, "{least} {start}");
         // A planned trajectory that never comes closer than the start is kept (the first of
         // equals).
         let up = to(Point3::new(3.0, 3.0, 1.5));
-        let chosen = safest(&map, radius, &here, rest, cfg, up, low).unwrap();
+        let (chosen, escape) = safest(&map, radius, &here, rest, cfg, up, low).unwrap();
+        assert!(!escape);
         assert!((end(&chosen) - Point3::new(3.0, 3.0, 1.5)).norm() < 1e-6);
+    }
+
+    #[test]
+    fn a_target_is_given_up_after_its_escape_limit_of_short_moves_in_a_row() {
+        let (a, b) = (Point3::new(1.0, 2.0, 3.0), Point3::new(5.0, 2.0, 3.0));
+        let mut e = Escapes::default();
+        for _ in 1..ESCAPE_LIMIT {
+            assert!(!e.record(&a, true, true));
+        }
+        // A plan that flies nothing (it keeps the trajectory) leaves the count.
+        assert!(!e.record(&a, false, false));
+        assert!(e.record(&a, true, true));
+        // Given up: the count starts again.
+        assert!(!e.record(&a, true, true));
+        // Another target, or the way flown, restarts the count.
+        let mut e = Escapes::default();
+        for _ in 1..ESCAPE_LIMIT {
+            assert!(!e.record(&a, true, true));
+        }
+        assert!(!e.record(&b, true, true));
+        for _ in 2..ESCAPE_LIMIT {
+            assert!(!e.record(&b, true, true));
+        }
+        assert!(!e.record(&b, false, true));
+        assert!(!e.record(&b, true, true));
+        // The viewpoint moves a little as its frontier shrinks: still the same target.
+        let near = b + Vector3::new(0.3, 0.0, 0.0);
+        for _ in 2..ESCAPE_LIMIT {
+            assert!(!e.record(&near, true, true));
+        }
+        assert!(e.record(&b, true, true));
     }
 
     #[test]
