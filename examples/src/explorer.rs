@@ -106,7 +106,7 @@ const ESCAPE_RADIUS: f64 = 1.0;
 const ESCAPE_STEP: f64 = 1.0;
 
 /// Plans in a row that fly a short move instead of the way to the same target before the
-/// target is given up.
+/// target is put off until no other is left.
 const ESCAPE_LIMIT: usize = 5;
 
 /// Errors of an exploration run.
@@ -1008,6 +1008,9 @@ struct Explorer<'a> {
     arrival: Option<f64>,
     /// Plans in a row that flew a short move instead of the way to their target.
     escapes: Escapes,
+    /// Viewpoints of targets put off by [`ESCAPE_LIMIT`] short moves in a row: chosen only
+    /// when no other target is left.
+    deferred: Vec<Point3<f64>>,
     /// Whether the UAV makes headway toward its targets.
     headway: Headway,
     last_targets: usize,
@@ -1105,16 +1108,7 @@ impl Explorer<'_> {
             |_| true,
             &self.config.viewpoints,
         )?;
-        let exhausted = &self.exhausted;
-        let targets: Vec<&Target> = plan
-            .targets
-            .iter()
-            .filter(|t| {
-                exhausted
-                    .iter()
-                    .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
-            })
-            .collect();
+        let targets = open_targets(&plan.targets, &self.exhausted, &self.deferred);
         self.last_targets = targets.len();
         // The current target is kept until it is reached or its frontier is gone: re-choosing
         // the tour's first target every cycle makes the UAV turn back and forth between
@@ -1352,13 +1346,13 @@ impl Explorer<'_> {
             self.arrival = None;
         }
         // Short moves away from walls instead of the way to the same target, again and
-        // again: its way is too narrow to fly, and the moves drift about (in the sinkhole
-        // for over 100 s); the target is given up like an exhausted one.
+        // again: its way is too narrow to fly from here, and the moves drift about (in the
+        // sinkhole for over 100 s); the target waits until the others are done.
         if self
             .escapes
             .record(&target.viewpoint, escaped, traj.is_some())
         {
-            self.exhausted.push(target.viewpoint);
+            self.deferred.push(target.viewpoint);
         }
         self.reference.traj = traj;
         self.reference.t0 = t;
@@ -1402,6 +1396,25 @@ impl Explorer<'_> {
     }
 }
 
+/// The targets the planner may choose: none whose viewpoint lies within
+/// [`EXHAUSTED_RADIUS`] of an `exhausted` one, and none near a `deferred` one unless those
+/// are all that is left.
+fn open_targets<'t>(
+    targets: &'t [Target],
+    exhausted: &[Point3<f64>],
+    deferred: &[Point3<f64>],
+) -> Vec<&'t Target> {
+    let near_any = |list: &[Point3<f64>], t: &Target| {
+        list.iter()
+            .any(|e| (e - t.viewpoint).norm() <= EXHAUSTED_RADIUS)
+    };
+    let mut open: Vec<&Target> = targets.iter().filter(|t| !near_any(exhausted, t)).collect();
+    if open.iter().any(|t| !near_any(deferred, t)) {
+        open.retain(|t| !near_any(deferred, t));
+    }
+    open
+}
+
 /// Counts the plans in a row that fly a short move away from walls (see [`safest`]) instead
 /// of the way to the same target.
 #[derive(Debug, Default)]
@@ -1412,7 +1425,7 @@ struct Escapes {
 
 impl Escapes {
     /// Records a plan for the target at `viewpoint`: whether it `escaped` and whether it
-    /// `flew` anything. Returns `true` when the target is to be given up: the
+    /// `flew` anything. Returns `true` when the target is to be put off: the
     /// [`ESCAPE_LIMIT`]-th short move in a row for targets within [`KEEP_RADIUS`] of each
     /// other. A plan that flies the way to its target, or a move for another target, starts
     /// the count again.
@@ -1569,6 +1582,7 @@ pub fn explore(
         exhausted: Vec::new(),
         arrival: None,
         escapes: Escapes::default(),
+        deferred: Vec::new(),
         headway: Headway::default(),
         last_targets: 0,
         region: (mission.min, mission.max),
@@ -2356,7 +2370,7 @@ mod tests {
     }
 
     #[test]
-    fn a_target_is_given_up_after_its_escape_limit_of_short_moves_in_a_row() {
+    fn a_target_is_put_off_after_its_escape_limit_of_short_moves_in_a_row() {
         let (a, b) = (Point3::new(1.0, 2.0, 3.0), Point3::new(5.0, 2.0, 3.0));
         let mut e = Escapes::default();
         for _ in 1..ESCAPE_LIMIT {
@@ -2365,7 +2379,7 @@ mod tests {
         // A plan that flies nothing (it keeps the trajectory) leaves the count.
         assert!(!e.record(&a, false, false));
         assert!(e.record(&a, true, true));
-        // Given up: the count starts again.
+        // Put off: the count starts again.
         assert!(!e.record(&a, true, true));
         // Another target, or the way flown, restarts the count.
         let mut e = Escapes::default();
@@ -2384,6 +2398,31 @@ mod tests {
             assert!(!e.record(&near, true, true));
         }
         assert!(e.record(&b, true, true));
+    }
+
+    #[test]
+    fn deferred_targets_wait_until_they_are_all_that_is_left() {
+        let target = |x: f64| Target {
+            viewpoint: Point3::new(x, 0.0, 1.0),
+            members: Vec::new(),
+            center: Point3::new(x, 1.0, 1.0),
+            score: 1.0,
+            seen_cells: 1,
+            shared_viewpoints: 1,
+        };
+        let targets = [target(0.0), target(5.0), target(10.0)];
+        let xs = |open: Vec<&Target>| open.iter().map(|t| t.viewpoint.x).collect::<Vec<_>>();
+        let near = |x: f64| vec![Point3::new(x + 0.3, 0.0, 1.0)];
+        assert_eq!(xs(open_targets(&targets, &[], &[])), [0.0, 5.0, 10.0]);
+        assert_eq!(xs(open_targets(&targets, &near(0.0), &[])), [5.0, 10.0]);
+        assert_eq!(xs(open_targets(&targets, &[], &near(5.0))), [0.0, 10.0]);
+        // With the others exhausted, the deferred one comes back; exhausted ones never do.
+        let both = [near(0.0), near(10.0)].concat();
+        assert_eq!(xs(open_targets(&targets, &both, &near(5.0))), [5.0]);
+        let all = [near(0.0), near(5.0), near(10.0)].concat();
+        assert!(open_targets(&targets, &all, &near(5.0)).is_empty());
+        // Everything deferred: everything open.
+        assert_eq!(xs(open_targets(&targets, &[], &all)), [0.0, 5.0, 10.0]);
     }
 
     #[test]
