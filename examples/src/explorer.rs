@@ -105,10 +105,6 @@ const ESCAPE_RADIUS: f64 = 1.0;
 /// [`safest`]).
 const ESCAPE_STEP: f64 = 1.0;
 
-/// Plans in a row that fly a short move instead of the way to the same target before the
-/// target is put off until no other is left.
-const ESCAPE_LIMIT: usize = 5;
-
 /// Errors of an exploration run.
 #[derive(Debug, thiserror::Error)]
 pub enum ExploreError {
@@ -1006,11 +1002,6 @@ struct Explorer<'a> {
     exhausted: Vec<Point3<f64>>,
     /// When the UAV reached the viewpoint it now hovers at.
     arrival: Option<f64>,
-    /// Plans in a row that flew a short move instead of the way to their target.
-    escapes: Escapes,
-    /// Viewpoints of targets put off by [`ESCAPE_LIMIT`] short moves in a row: chosen only
-    /// when no other target is left.
-    deferred: Vec<Point3<f64>>,
     /// Whether the UAV makes headway toward its targets.
     headway: Headway,
     last_targets: usize,
@@ -1108,7 +1099,16 @@ impl Explorer<'_> {
             |_| true,
             &self.config.viewpoints,
         )?;
-        let targets = open_targets(&plan.targets, &self.exhausted, &self.deferred);
+        let exhausted = &self.exhausted;
+        let targets: Vec<&Target> = plan
+            .targets
+            .iter()
+            .filter(|t| {
+                exhausted
+                    .iter()
+                    .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
+            })
+            .collect();
         self.last_targets = targets.len();
         // The current target is kept until it is reached or its frontier is gone: re-choosing
         // the tour's first target every cycle makes the UAV turn back and forth between
@@ -1284,7 +1284,6 @@ impl Explorer<'_> {
         cfg.corridor_radius = Some(self.config.corridor);
         cfg.waypoint_weight = 1e4;
         let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
-        let mut escaped = false;
         let traj = if at_rest && (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
             // Already there: after a second of looking, a frontier that stays is out of view
             // from here; do not come back for it.
@@ -1314,7 +1313,7 @@ impl Explorer<'_> {
                     Some(second)
                 } else if force || self.reference.traj.is_none() || self.reference.done(t) {
                     // It will be flown whatever it is: fly the one that keeps the most room.
-                    let (traj, escape) = safest(
+                    Some(safest(
                         &self.map,
                         self.config.flight.radius,
                         &here,
@@ -1322,9 +1321,7 @@ impl Explorer<'_> {
                         cfg,
                         first,
                         second,
-                    )?;
-                    escaped = escape;
-                    Some(traj)
+                    )?)
                 } else {
                     Some(first)
                 }
@@ -1344,15 +1341,6 @@ impl Explorer<'_> {
         }
         if traj.is_some() {
             self.arrival = None;
-        }
-        // Short moves away from walls instead of the way to the same target, again and
-        // again: its way is too narrow to fly from here, and the moves drift about (in the
-        // sinkhole for over 100 s); the target waits until the others are done.
-        if self
-            .escapes
-            .record(&target.viewpoint, escaped, traj.is_some())
-        {
-            self.deferred.push(target.viewpoint);
         }
         self.reference.traj = traj;
         self.reference.t0 = t;
@@ -1396,65 +1384,12 @@ impl Explorer<'_> {
     }
 }
 
-/// The targets the planner may choose: none whose viewpoint lies within
-/// [`EXHAUSTED_RADIUS`] of an `exhausted` one, and none near a `deferred` one unless those
-/// are all that is left.
-fn open_targets<'t>(
-    targets: &'t [Target],
-    exhausted: &[Point3<f64>],
-    deferred: &[Point3<f64>],
-) -> Vec<&'t Target> {
-    let near_any = |list: &[Point3<f64>], t: &Target| {
-        list.iter()
-            .any(|e| (e - t.viewpoint).norm() <= EXHAUSTED_RADIUS)
-    };
-    let mut open: Vec<&Target> = targets.iter().filter(|t| !near_any(exhausted, t)).collect();
-    if open.iter().any(|t| !near_any(deferred, t)) {
-        open.retain(|t| !near_any(deferred, t));
-    }
-    open
-}
-
-/// Counts the plans in a row that fly a short move away from walls (see [`safest`]) instead
-/// of the way to the same target.
-#[derive(Debug, Default)]
-struct Escapes {
-    /// The target's viewpoint and the count.
-    last: Option<(Point3<f64>, usize)>,
-}
-
-impl Escapes {
-    /// Records a plan for the target at `viewpoint`: whether it `escaped` and whether it
-    /// `flew` anything. Returns `true` when the target is to be put off: the
-    /// [`ESCAPE_LIMIT`]-th short move in a row for targets within [`KEEP_RADIUS`] of each
-    /// other. A plan that flies the way to its target, or a move for another target, starts
-    /// the count again.
-    fn record(&mut self, viewpoint: &Point3<f64>, escaped: bool, flew: bool) -> bool {
-        if !escaped {
-            if flew {
-                self.last = None;
-            }
-            return false;
-        }
-        let count = match self.last {
-            Some((vp, n)) if (vp - viewpoint).norm() < KEEP_RADIUS => n + 1,
-            _ => 1,
-        };
-        if count >= ESCAPE_LIMIT {
-            self.last = None;
-            return true;
-        }
-        self.last = Some((*viewpoint, count));
-        false
-    }
-}
-
 /// Of `first`, `second` and short moves from `here` (state `head`) to rest at the 26 points
 /// [`ESCAPE_STEP`] away in line of sight through known-free cells, the trajectory whose
 /// least clearance to a known obstacle is largest, then whose end has the most clearance
-/// (the first of equals), and whether it is one of the short moves: for a replan that must
-/// fly something while every planned trajectory comes too close. A UAV that finds itself
-/// too near a floor or wall backs away, and plans again from there.
+/// (the first of equals): for a replan
+/// that must fly something while every planned trajectory comes too close. A UAV that
+/// finds itself too near a floor or wall backs away, and plans again from there.
 fn safest(
     map: &VoxelMap,
     radius: f64,
@@ -1463,7 +1398,7 @@ fn safest(
     cfg: OptimizerConfig,
     first: Trajectory<3>,
     second: Trajectory<3>,
-) -> Result<(Trajectory<3>, bool), ExploreError> {
+) -> Result<Trajectory<3>, ExploreError> {
     let mut candidates = vec![second];
     let steps = [-1.0, 0.0, 1.0];
     for dz in steps {
@@ -1496,14 +1431,14 @@ fn safest(
             map.clearance(&end, 4.0 * margin),
         ))
     };
-    let mut best = (room(&first)?, first, false);
-    for (i, traj) in candidates.into_iter().enumerate() {
+    let mut best = (room(&first)?, first);
+    for traj in candidates {
         let r = room(&traj)?;
         if r > best.0 {
-            best = (r, traj, i > 0);
+            best = (r, traj);
         }
     }
-    Ok((best.1, best.2))
+    Ok(best.1)
 }
 
 /// The least clearance to a known obstacle along `traj` (sampled every 0.05 s), up to
@@ -1581,8 +1516,6 @@ pub fn explore(
         trail: Vec::new(),
         exhausted: Vec::new(),
         arrival: None,
-        escapes: Escapes::default(),
-        deferred: Vec::new(),
         headway: Headway::default(),
         last_targets: 0,
         region: (mission.min, mission.max),
@@ -2355,74 +2288,15 @@ mod tests {
         // Planned trajectories that sink toward the floor: the move straight up wins.
         let low = to(Point3::new(4.0, 3.0, 0.25));
         assert!(least_clearance(&map, &low, cap).unwrap() < start - 0.05);
-        let (chosen, escape) =
-            safest(&map, radius, &here, rest, cfg, low.clone(), low.clone()).unwrap();
-        assert!(escape);
+        let chosen = safest(&map, radius, &here, rest, cfg, low.clone(), low.clone()).unwrap();
         assert!((end(&chosen) - Point3::new(2.0, 3.0, 1.32)).norm() < 1e-6);
         let least = least_clearance(&map, &chosen, cap).unwrap();
         assert!((least - start).abs() < 1e-9, "{least} {start}");
         // A planned trajectory that never comes closer than the start is kept (the first of
         // equals).
         let up = to(Point3::new(3.0, 3.0, 1.5));
-        let (chosen, escape) = safest(&map, radius, &here, rest, cfg, up, low).unwrap();
-        assert!(!escape);
+        let chosen = safest(&map, radius, &here, rest, cfg, up, low).unwrap();
         assert!((end(&chosen) - Point3::new(3.0, 3.0, 1.5)).norm() < 1e-6);
-    }
-
-    #[test]
-    fn a_target_is_put_off_after_its_escape_limit_of_short_moves_in_a_row() {
-        let (a, b) = (Point3::new(1.0, 2.0, 3.0), Point3::new(5.0, 2.0, 3.0));
-        let mut e = Escapes::default();
-        for _ in 1..ESCAPE_LIMIT {
-            assert!(!e.record(&a, true, true));
-        }
-        // A plan that flies nothing (it keeps the trajectory) leaves the count.
-        assert!(!e.record(&a, false, false));
-        assert!(e.record(&a, true, true));
-        // Put off: the count starts again.
-        assert!(!e.record(&a, true, true));
-        // Another target, or the way flown, restarts the count.
-        let mut e = Escapes::default();
-        for _ in 1..ESCAPE_LIMIT {
-            assert!(!e.record(&a, true, true));
-        }
-        assert!(!e.record(&b, true, true));
-        for _ in 2..ESCAPE_LIMIT {
-            assert!(!e.record(&b, true, true));
-        }
-        assert!(!e.record(&b, false, true));
-        assert!(!e.record(&b, true, true));
-        // The viewpoint moves a little as its frontier shrinks: still the same target.
-        let near = b + Vector3::new(0.3, 0.0, 0.0);
-        for _ in 2..ESCAPE_LIMIT {
-            assert!(!e.record(&near, true, true));
-        }
-        assert!(e.record(&b, true, true));
-    }
-
-    #[test]
-    fn deferred_targets_wait_until_they_are_all_that_is_left() {
-        let target = |x: f64| Target {
-            viewpoint: Point3::new(x, 0.0, 1.0),
-            members: Vec::new(),
-            center: Point3::new(x, 1.0, 1.0),
-            score: 1.0,
-            seen_cells: 1,
-            shared_viewpoints: 1,
-        };
-        let targets = [target(0.0), target(5.0), target(10.0)];
-        let xs = |open: Vec<&Target>| open.iter().map(|t| t.viewpoint.x).collect::<Vec<_>>();
-        let near = |x: f64| vec![Point3::new(x + 0.3, 0.0, 1.0)];
-        assert_eq!(xs(open_targets(&targets, &[], &[])), [0.0, 5.0, 10.0]);
-        assert_eq!(xs(open_targets(&targets, &near(0.0), &[])), [5.0, 10.0]);
-        assert_eq!(xs(open_targets(&targets, &[], &near(5.0))), [0.0, 10.0]);
-        // With the others exhausted, the deferred one comes back; exhausted ones never do.
-        let both = [near(0.0), near(10.0)].concat();
-        assert_eq!(xs(open_targets(&targets, &both, &near(5.0))), [5.0]);
-        let all = [near(0.0), near(5.0), near(10.0)].concat();
-        assert!(open_targets(&targets, &all, &near(5.0)).is_empty());
-        // Everything deferred: everything open.
-        assert_eq!(xs(open_targets(&targets, &[], &all)), [0.0, 5.0, 10.0]);
     }
 
     #[test]
