@@ -251,12 +251,12 @@ struct Block {
     /// Length ρ of the in-plane part of the unit direction in the motor base frame (this and
     /// the next three are packed: target j's at `slot[j]`).
     rho: [f64; BLOCK],
-    /// Azimuth φ of that direction (its x component u_x until the second loop).
+    /// Azimuth φ of that direction (its x component u_x until the last loop).
     phi: [f64; BLOCK],
     /// Its y component u_y.
     uy: [f64; BLOCK],
     /// Half-width δ of the arc of motor angles that passes the angular gate (its cosine
-    /// until the second loop).
+    /// until the last loop).
     delta: [f64; BLOCK],
     /// Where target j's ρ, φ and δ are: the angular quantities are computed only for the
     /// targets within the distance gate, packed at the front of their arrays.
