@@ -67,14 +67,20 @@ fn reference(n: usize, dt: f64) -> Vec<Isometry3<f64>> {
         .collect()
 }
 
+/// `n` targets in a 20 m × 20 m × 2 m box around the reference's start.
 fn targets(n: usize) -> Vec<FrontierTarget> {
-    let mut r = Lcg(3);
+    targets_in(n, 3, [20.0, 20.0, 2.0])
+}
+
+/// `n` seeded targets uniform in a box of the given size centred on the origin.
+fn targets_in(n: usize, seed: u64, size: [f64; 3]) -> Vec<FrontierTarget> {
+    let mut r = Lcg(seed);
     (0..n)
         .map(|_| FrontierTarget {
             center: Point3::new(
-                20.0 * r.next() - 10.0,
-                20.0 * r.next() - 10.0,
-                2.0 * r.next() - 1.0,
+                size[0] * r.next() - 0.5 * size[0],
+                size[1] * r.next() - 0.5 * size[1],
+                size[2] * r.next() - 0.5 * size[2],
             ),
             score: 100.0 * r.next(),
         })
@@ -105,53 +111,39 @@ fn bench_fisher(c: &mut Criterion) {
     });
 }
 
+/// The surrogates for 100 targets near the UAV, and for 300 spread along a 120 m × 20 m ×
+/// 8 m hall (the maze's size) with the UAV near its middle: as in a large map, most of those
+/// are beyond the 15 m distance gate.
 fn bench_surrogates(c: &mut Criterion) {
     let chain = KinematicChain::default();
     let refs = reference(20, 0.1);
-    let t = targets(100);
     let cfg = UtilityConfig::default();
     let mut out = Vec::new();
-    c.bench_function("frontier_surrogates_100_targets_21_steps_72_knots", |b| {
-        b.iter(|| {
-            frontier_surrogates(&chain, black_box(&refs), black_box(&t), &cfg, 72, &mut out)
-                .unwrap();
-            black_box(&out);
-        });
-    });
-}
-
-/// 300 targets spread along a 120 m × 20 m × 8 m hall (the maze's size), the UAV near its
-/// middle: as in a large map, most targets are beyond the 15 m distance gate.
-fn spread_targets(n: usize) -> Vec<FrontierTarget> {
-    let mut r = Lcg(11);
-    (0..n)
-        .map(|_| FrontierTarget {
-            center: Point3::new(
-                120.0 * r.next() - 60.0,
-                20.0 * r.next() - 10.0,
-                8.0 * r.next() - 4.0,
-            ),
-            score: 100.0 * r.next(),
-        })
-        .collect()
-}
-
-fn bench_surrogates_spread(c: &mut Criterion) {
-    let chain = KinematicChain::default();
-    let refs = reference(20, 0.1);
-    let t = spread_targets(300);
-    let cfg = UtilityConfig::default();
-    let mut out = Vec::new();
-    c.bench_function(
-        "frontier_surrogates_300_spread_targets_21_steps_72_knots",
-        |b| {
-            b.iter(|| {
-                frontier_surrogates(&chain, black_box(&refs), black_box(&t), &cfg, 72, &mut out)
+    for (name, t) in [
+        ("100_targets", targets(100)),
+        (
+            "300_spread_targets",
+            targets_in(300, 11, [120.0, 20.0, 8.0]),
+        ),
+    ] {
+        c.bench_function(
+            &format!("frontier_surrogates_{name}_21_steps_72_knots"),
+            |b| {
+                b.iter(|| {
+                    frontier_surrogates(
+                        &chain,
+                        black_box(&refs),
+                        black_box(&t),
+                        &cfg,
+                        72,
+                        &mut out,
+                    )
                     .unwrap();
-                black_box(&out);
-            });
-        },
-    );
+                    black_box(&out);
+                });
+            },
+        );
+    }
 }
 
 fn bench_mpc(c: &mut Criterion) {
@@ -273,7 +265,6 @@ criterion_group!(
     benches,
     bench_fisher,
     bench_surrogates,
-    bench_surrogates_spread,
     bench_mpc,
     bench_icr_scan,
     bench_icr
