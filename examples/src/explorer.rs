@@ -419,6 +419,9 @@ impl ExplorerConfig {
                 "must be >= 1",
             );
         }
+        if self.max_clusters == 0 {
+            return bad("max_clusters", "must be >= 1");
+        }
         if let ControllerKind::Fixed(d) = self.controller
             && !(d.is_finite() && d >= 0.0)
         {
@@ -2030,6 +2033,10 @@ mod tests {
             },
             ExplorerConfig {
                 replan_frames: 0,
+                ..ExplorerConfig::default()
+            },
+            ExplorerConfig {
+                max_clusters: 0,
                 ..ExplorerConfig::default()
             },
             ExplorerConfig {
