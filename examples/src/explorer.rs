@@ -12,9 +12,9 @@
 //! first one. When the graph reaches none of the first targets, a grid search runs from the
 //! UAV to them, then from each to the nearest graph node the UAV reaches (a bridge); the path
 //! found joins the graph. A trajectory that comes closer to an obstacle than the UAV's radius
-//! and margin is made again through waypoints at most 1 m apart along the path; on the way
-//! back along the UAV's trail, where neither keeps the margin, one that keeps half of it
-//! along a path that does too is flown. A UAV whose
+//! and margin is made again through waypoints at most 1 m apart along the path; through a
+//! narrow place, where neither keeps the margin, one that keeps half of it along a path that
+//! does too is flown. A UAV whose
 //! positions fit in a box of 4 m diagonal for 30 s gives up the target it keeps choosing. The
 //! scan controller then chooses the motor's acceleration along the predicted trajectory
 //! (10 Hz), with the Fisher table rebuilt from the odometry's local map every
@@ -100,14 +100,11 @@ const KEEP_RADIUS: f64 = 1.0;
 /// Trajectories keep this much more than the UAV's radius from known obstacles \[m\].
 const SAFETY_MARGIN: f64 = 0.05;
 
-/// When no trajectory along the way back on the UAV's trail keeps the radius and
-/// [`SAFETY_MARGIN`], one that keeps this much more than the radius, along a path that does
-/// too, is flown instead \[m\]: trajectories stray a few centimetres from their paths, and
-/// the UAV would otherwise sway on the spot in front of the way it came by. The last grid
-/// searches also run at this clearance when none is found at the margin, so a UAV that came
-/// through a narrow place finds its way back. (Grid paths at the margin get no such
-/// allowance: one let a UAV into a hole in the apartment's floor that the map then closed
-/// behind it.)
+/// When no trajectory keeps the radius and [`SAFETY_MARGIN`] (a path through a narrow place:
+/// the grid search at that clearance on cell centres, the way back along the trail), one
+/// that keeps this much more than the radius, along a path that does too, is flown instead
+/// \[m\]: trajectories stray a few centimetres from their paths, and the UAV would otherwise
+/// sway on the spot in front of the only way to a place.
 const TIGHT_MARGIN: f64 = 0.025;
 
 /// Around the UAV, grid paths may keep as little clearance as the UAV has \[m\].
@@ -1188,9 +1185,6 @@ impl Explorer<'_> {
         // The first target of the tour with a graph path; failing that, the first ones the
         // grid search reaches (their paths then join the graph).
         let mut chosen: Option<(usize, Vec<[f64; 3]>)> = None;
-        // Whether the path may take a trajectory that keeps only the tight margin: the way
-        // back along the trail (the UAV flew it), or a path found only at that margin.
-        let mut narrow = false;
         for &i in tour.order.iter().filter(|&&i| i != 0) {
             if let Some(path) = self.graph.shortest_path(odom, views[i - 1])? {
                 let pts = path
@@ -1281,35 +1275,19 @@ impl Explorer<'_> {
         // costs, which say nothing of targets the graph does not reach.
         if chosen.is_none() {
             let views: Vec<Point3<f64>> = targets.iter().map(|t| t.viewpoint).collect();
-            let r = self.config.flight.radius;
-            // Then both at the tight margin: a UAV that came through a narrow place at it
-            // must find its way back at it.
-            for squeeze in [r + SAFETY_MARGIN, r + TIGHT_MARGIN] {
-                let tight = squeeze < r + SAFETY_MARGIN;
-                chosen = nearest_grid_path(
-                    &self.map,
-                    &here,
-                    &views,
-                    squeeze,
-                    SQUEEZE_SEARCHES,
-                    SQUEEZE_EXPANSIONS,
-                )
-                .map(|found| (found, tight))
-                // Then back along the trail to where it came nearest to a target: the UAV
-                // flew there, through openings a grid search may need millions of
-                // expansions to find.
-                .or_else(|| {
-                    trail_path(&self.map, &self.trail, &here, &views, squeeze)
-                        .map(|found| (found, true))
-                })
-                .map(|((i, path), tight)| {
-                    narrow = tight;
-                    (i, path.iter().map(arr).collect())
-                });
-                if chosen.is_some() {
-                    break;
-                }
-            }
+            let squeeze = self.config.flight.radius + SAFETY_MARGIN;
+            chosen = nearest_grid_path(
+                &self.map,
+                &here,
+                &views,
+                squeeze,
+                SQUEEZE_SEARCHES,
+                SQUEEZE_EXPANSIONS,
+            )
+            // Then back along the trail to where it came nearest to a target: the UAV flew
+            // there, through openings a grid search may need millions of expansions to find.
+            .or_else(|| trail_path(&self.map, &self.trail, &here, &views, squeeze))
+            .map(|(i, path)| (i, path.iter().map(arr).collect()));
         }
         let Some((i, positions)) = chosen else {
             self.stalled_since.get_or_insert(t);
@@ -1343,12 +1321,11 @@ impl Explorer<'_> {
         cfg.waypoint_weight = 1e4;
         let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
         let margin = self.config.flight.radius + SAFETY_MARGIN;
-        // Along a narrow path, a trajectory that keeps only the tight margin, where the path
-        // does too (beyond the UAV's escape radius).
+        // A trajectory that keeps only the tight margin, along a path that does too (beyond
+        // the UAV's escape radius).
         let fits_tight = |this: &Self, traj: &Trajectory<3>| -> Result<Option<f64>, ExploreError> {
             let need = this.config.flight.radius + TIGHT_MARGIN;
-            Ok((narrow
-                && path_keeps(&this.map, &here, &positions, need)
+            Ok((path_keeps(&this.map, &here, &positions, need)
                 && !this.too_close(traj, 0.0, need)?)
             .then_some(need))
         };
