@@ -305,9 +305,8 @@ pub struct ExplorerConfig {
     /// At most this many local-map points (an even subsample) enter the Fisher table;
     /// default 3000.
     pub fisher_points: usize,
-    /// At most this many frontier clusters, the nearest to the UAV, enter each global plan
-    /// (the next nearest as many when all their targets are given up); default 50 (the
-    /// frontier crate's benchmark size).
+    /// At most this many frontier clusters, the nearest to the UAV, enter each global plan;
+    /// default 50 (the frontier crate's benchmark size).
     pub max_clusters: usize,
     /// The UAV hovers this long at the start while the motor spins up and the odometry builds
     /// its first map \[s\]; default 2.
@@ -1092,49 +1091,39 @@ impl Explorer<'_> {
             self.trail.push(here);
         }
         // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
-        // and the tour is planned where the UAV can act next. When every target those give
-        // is exhausted, the next nearest: the frontier beyond them is still to be explored.
+        // and the tour is planned where the UAV can act next.
         let mut clusters: Vec<&frontier::Cluster> = self
             .mission
             .ids()
             .iter()
             .filter_map(|id| self.frontiers.cluster(*id))
             .collect();
-        let batch = self.config.max_clusters;
-        let split = clusters.len() > batch;
-        if split {
+        if clusters.len() > self.config.max_clusters {
             clusters.sort_by(|a, b| {
                 let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
                 d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
             });
+            clusters.truncate(self.config.max_clusters);
+            clusters.sort_by_key(|c| c.id());
         }
+        let plan = plan_targets_among(
+            &self.map,
+            &clusters,
+            &here,
+            &Omnidirectional,
+            |_| true,
+            &self.config.viewpoints,
+        )?;
         let exhausted = &self.exhausted;
-        let fresh = |t: &Target| {
-            exhausted
-                .iter()
-                .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
-        };
-        let mut start = 0;
-        let plan = loop {
-            let end = (start + batch).min(clusters.len());
-            let mut nearest = clusters[start..end].to_vec();
-            if split {
-                nearest.sort_by_key(|c| c.id());
-            }
-            let plan = plan_targets_among(
-                &self.map,
-                &nearest,
-                &here,
-                &Omnidirectional,
-                |_| true,
-                &self.config.viewpoints,
-            )?;
-            if end >= clusters.len() || plan.targets.iter().any(fresh) {
-                break plan;
-            }
-            start = end;
-        };
-        let targets: Vec<&Target> = plan.targets.iter().filter(|t| fresh(t)).collect();
+        let targets: Vec<&Target> = plan
+            .targets
+            .iter()
+            .filter(|t| {
+                exhausted
+                    .iter()
+                    .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
+            })
+            .collect();
         self.last_targets = targets.len();
         // The current target is kept until it is reached or its frontier is gone: re-choosing
         // the tour's first target every cycle makes the UAV turn back and forth between
@@ -1192,16 +1181,6 @@ impl Explorer<'_> {
                     .iter()
                     .map(|&n| self.graph.position(n))
                     .collect::<Result<Vec<_>, _>>()?;
-                // An edge near an obstacle seen after it joined the graph: no trajectory along
-                // it is flown (the UAV would sway on the spot replanning it); the next target.
-                if !path_keeps(
-                    &self.map,
-                    &here,
-                    &pts,
-                    self.config.flight.radius + TIGHT_MARGIN,
-                ) {
-                    continue;
-                }
                 chosen = Some((i - 1, pts));
                 break;
             }
