@@ -12,9 +12,7 @@
 //! first one. When the graph reaches none of the first targets, a grid search runs from the
 //! UAV to them, then from each to the nearest graph node the UAV reaches (a bridge); the path
 //! found joins the graph. A trajectory that comes closer to an obstacle than the UAV's radius
-//! and margin is made again through waypoints at most 1 m apart along the path; through a
-//! narrow place, where neither keeps the margin, one that keeps half of it along a path that
-//! does too is flown. A UAV whose
+//! and margin is made again through waypoints at most 1 m apart along the path. A UAV whose
 //! positions fit in a box of 4 m diagonal for 30 s gives up the target it keeps choosing. The
 //! scan controller then chooses the motor's acceleration along the predicted trajectory
 //! (10 Hz), with the Fisher table rebuilt from the odometry's local map every
@@ -99,13 +97,6 @@ const KEEP_RADIUS: f64 = 1.0;
 
 /// Trajectories keep this much more than the UAV's radius from known obstacles \[m\].
 const SAFETY_MARGIN: f64 = 0.05;
-
-/// When no trajectory keeps the radius and [`SAFETY_MARGIN`] (a path through a narrow place:
-/// the grid search at that clearance on cell centres, the way back along the trail), one
-/// that keeps this much more than the radius, along a path that does too, is flown instead
-/// \[m\]: trajectories stray a few centimetres from their paths, and the UAV would otherwise
-/// sway on the spot in front of the only way to a place.
-const TIGHT_MARGIN: f64 = 0.025;
 
 /// Around the UAV, grid paths may keep as little clearance as the UAV has \[m\].
 const ESCAPE_RADIUS: f64 = 1.0;
@@ -523,9 +514,6 @@ pub struct ExploreLog {
 struct Reference {
     traj: Option<Trajectory<3>>,
     t0: f64,
-    /// The clearance \[m\] the trajectory keeps from known obstacles: the UAV's radius plus
-    /// [`SAFETY_MARGIN`], or plus [`TIGHT_MARGIN`] through a narrow place.
-    need: f64,
     hover: Vector3<f64>,
     /// Yaw: `yaw0` at `yaw_t0`, turning toward `yaw_goal` at `yaw_rate`.
     yaw0: f64,
@@ -1299,16 +1287,7 @@ impl Explorer<'_> {
         cfg.corridor_radius = Some(self.config.corridor);
         cfg.waypoint_weight = 1e4;
         let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
-        let margin = self.config.flight.radius + SAFETY_MARGIN;
-        // A trajectory that keeps only the tight margin, along a path that does too (beyond
-        // the UAV's escape radius).
-        let fits_tight = |this: &Self, traj: &Trajectory<3>| -> Result<Option<f64>, ExploreError> {
-            let need = this.config.flight.radius + TIGHT_MARGIN;
-            Ok((path_keeps(&this.map, &here, &positions, need)
-                && !this.too_close(traj, 0.0, need)?)
-            .then_some(need))
-        };
-        let (traj, need) = if at_rest && (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
+        let traj = if at_rest && (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
             // Already there: after a second of looking, a frontier that stays is out of view
             // from here; do not come back for it.
             match self.arrival {
@@ -1319,7 +1298,7 @@ impl Explorer<'_> {
                 Some(_) => {}
                 None => self.arrival = Some(t),
             }
-            (None, margin)
+            None
         } else {
             let first = Optimizer::<3, 3>::new(cfg, head, tail, inner)?
                 .optimize()?
@@ -1327,21 +1306,17 @@ impl Explorer<'_> {
             // A trajectory that cuts closer to a wall or ceiling than the path between two
             // far-apart waypoints is made again through waypoints at most
             // [`DENSE_SPACING`] apart, which hold it to the path.
-            if self.too_close(&first, 0.0, margin)? {
+            if self.too_close(&first, 0.0)? {
                 let dense = densify(&positions, DENSE_SPACING);
                 let inner = &dense[1..dense.len().saturating_sub(1).max(1)];
                 let second = Optimizer::<3, 3>::new(cfg, head, tail, inner)?
                     .optimize()?
                     .trajectory;
-                if !self.too_close(&second, 0.0, margin)? {
-                    (Some(second), margin)
-                } else if let Some(need) = fits_tight(self, &second)? {
-                    (Some(second), need)
-                } else if let Some(need) = fits_tight(self, &first)? {
-                    (Some(first), need)
+                if !self.too_close(&second, 0.0)? {
+                    Some(second)
                 } else if force || self.reference.traj.is_none() || self.reference.done(t) {
                     // It will be flown whatever it is: fly the one that keeps the most room.
-                    let safest = safest(
+                    Some(safest(
                         &self.map,
                         self.config.flight.radius,
                         &here,
@@ -1349,19 +1324,18 @@ impl Explorer<'_> {
                         cfg,
                         first,
                         second,
-                    )?;
-                    (Some(safest), margin)
+                    )?)
                 } else {
-                    (Some(first), margin)
+                    Some(first)
                 }
             } else {
-                (Some(first), margin)
+                Some(first)
             }
         };
         // A new trajectory that swings close to a wall (the UAV's momentum carries it past
         // a sharp turn) does not replace a safe one: the UAV stays on course and plans again.
         if let Some(new) = &traj
-            && self.too_close(new, 0.0, need)?
+            && self.too_close(new, 0.0)?
             && self.reference.traj.is_some()
             && !force
             && !self.reference.done(t)
@@ -1372,62 +1346,45 @@ impl Explorer<'_> {
             self.arrival = None;
         }
         self.reference.traj = traj;
-        self.reference.need = need;
         self.reference.t0 = t;
         self.reference.hover = p;
         self.target = Some((target.viewpoint, target.center));
         Ok(true)
     }
 
-    /// Whether the rest of the trajectory passes closer to a known obstacle than the
-    /// clearance it was planned with (see [`Explorer::too_close`]).
+    /// Whether the rest of the trajectory passes closer to a known obstacle than the UAV's
+    /// radius and [`SAFETY_MARGIN`] (see [`Explorer::too_close`]).
     fn blocked(&self, t: f64) -> Result<bool, ExploreError> {
         match &self.reference.traj {
-            Some(traj) => self.too_close(traj, t - self.reference.t0, self.reference.need),
+            Some(traj) => self.too_close(traj, t - self.reference.t0),
             None => Ok(false),
         }
     }
 
-    /// Whether `traj` from time `s` on passes closer to a known obstacle than `need` \[m\].
-    /// Trajectories are kept while their target stays, so obstacles seen later must be caught
-    /// with a margin. Within [`ESCAPE_RADIUS`] of the start the clearance the start has is
-    /// enough (but at least the UAV's radius), so a UAV near a wall can keep a path that
-    /// leaves it.
-    fn too_close(&self, traj: &Trajectory<3>, s: f64, need: f64) -> Result<bool, ExploreError> {
+    /// Whether `traj` from time `s` on passes closer to a known obstacle than the UAV's radius
+    /// and [`SAFETY_MARGIN`]. Trajectories are kept while their target stays, so obstacles
+    /// seen later must be caught with a margin. Within [`ESCAPE_RADIUS`]
+    /// of the start the clearance the start has is enough, so a UAV near a wall can keep a
+    /// path that leaves it.
+    fn too_close(&self, traj: &Trajectory<3>, s: f64) -> Result<bool, ExploreError> {
+        let margin = self.config.flight.radius + SAFETY_MARGIN;
         let mut s = s.max(0.0);
         let start = Point3::from(traj.position(s.min(traj.duration()))?);
-        let near = self.map.clearance(&start, need);
+        let near = self.map.clearance(&start, margin);
         while s < traj.duration() {
             let p = Point3::from(traj.position(s)?);
-            let here_need = if (p - start).norm() <= ESCAPE_RADIUS {
+            let need = if (p - start).norm() <= ESCAPE_RADIUS {
                 near.max(self.config.flight.radius)
             } else {
-                need
+                margin
             };
-            if !self.map.is_clear(&p, here_need) {
+            if !self.map.is_clear(&p, need) {
                 return Ok(true);
             }
             s += 0.05;
         }
         Ok(false)
     }
-}
-
-/// Whether the polyline `pts` keeps `clearance` \[m\] from every known obstacle beyond
-/// [`ESCAPE_RADIUS`] of `here` (sampled every half cell).
-fn path_keeps(map: &VoxelMap, here: &Point3<f64>, pts: &[[f64; 3]], clearance: f64) -> bool {
-    let step = 0.5 * map.grid().resolution();
-    pts.windows(2).all(|w| {
-        let (a, b) = (Point3::from(w[0]), Point3::from(w[1]));
-        let d = b - a;
-        // Segment lengths are metres over centimetres: the count fits u32.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let n = (d.norm() / step).ceil().max(1.0) as u32;
-        (0..=n).all(|i| {
-            let p = a + d * (f64::from(i) / f64::from(n));
-            (p - here).norm() <= ESCAPE_RADIUS || map.is_clear(&p, clearance)
-        })
-    })
 }
 
 /// Of `first`, `second` and short moves from `here` (state `head`) to rest at the 26 points
@@ -1551,7 +1508,6 @@ pub fn explore(
         reference: Reference {
             traj: None,
             t0: 0.0,
-            need: config.flight.radius + SAFETY_MARGIN,
             hover: mission.start.coords,
             yaw0: 0.0,
             yaw_t0: 0.0,
@@ -2182,22 +2138,6 @@ mod tests {
     }
 
     #[test]
-    fn paths_keep_a_clearance_beyond_the_escape_radius_only() {
-        let map = walled_map();
-        // Toward the wall at x = 5 (faces at 4.85 and 5.15), ending 0.55 m before it.
-        let pts = [[2.0, 2.0, 1.5], [3.0, 2.0, 1.5], [4.3, 2.0, 1.5]];
-        let start = Point3::new(2.0, 2.0, 1.5);
-        assert!(path_keeps(&map, &start, &pts, 0.3));
-        assert!(!path_keeps(&map, &start, &pts, 1.0));
-        // From its end, the last metre is the UAV's own escape radius: only the rest counts.
-        let end = Point3::new(4.3, 2.0, 1.5);
-        assert!(path_keeps(&map, &end, &pts, 1.0));
-        assert!(!path_keeps(&map, &end, &pts, 2.5));
-        // A single point has no segment to check.
-        assert!(path_keeps(&map, &start, &pts[..1], 10.0));
-    }
-
-    #[test]
     fn grid_paths_go_round_walls_and_keep_their_clearance() {
         let map = walled_map();
         let (a, b) = (Point3::new(2.0, 2.0, 1.5), Point3::new(8.0, 2.0, 1.5));
@@ -2423,7 +2363,6 @@ mod tests {
         let r = Reference {
             traj: None,
             t0: 0.0,
-            need: 0.3,
             hover: Vector3::zeros(),
             yaw0: 3.0,
             yaw_t0: 1.0,
