@@ -210,6 +210,20 @@ impl Report {
     }
 }
 
+/// Writes `text` and a newline to standard output, for the programs' summaries. A closed
+/// output (a reader such as `head` that stopped early) ends nothing: the run's files are
+/// written already, so the program goes on where `println!` would panic.
+///
+/// # Example
+/// ```
+/// fu_mpc_examples::report::say("wrote out/explore");
+/// ```
+pub fn say(text: impl std::fmt::Display) {
+    use std::io::Write;
+    // A broken pipe behind stdout loses only the echo.
+    let _ = writeln!(std::io::stdout().lock(), "{text}");
+}
+
 /// The true and estimated positions of a log.
 pub fn positions(log: &ExploreLog) -> (Vec<Point3<f64>>, Vec<Point3<f64>>) {
     let at = |poses: &[nalgebra::Isometry3<f64>]| -> Vec<Point3<f64>> {

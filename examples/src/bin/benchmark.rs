@@ -7,7 +7,6 @@
 //! `summary.json` exists is not run again, so an interrupted benchmark resumes. At the end
 //! `DIR/results.md` holds one table per scene (mean over the seeds) and
 //! `DIR/coverage-SCENE.png` the coverage over time of every controller (first seed).
-#![allow(clippy::print_stdout)] // a program: it prints its progress and table
 
 use std::fmt::Write as _;
 use std::fs::File;
@@ -19,7 +18,7 @@ use clap::Parser;
 use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore};
 use fu_mpc_examples::metrics::{time_to_coverage, write_tum};
 use fu_mpc_examples::plot::{LinePlot, PALETTE, Series};
-use fu_mpc_examples::report::{Report, write_pictures};
+use fu_mpc_examples::report::{Report, say, write_pictures};
 use fu_mpc_examples::setup::load_scene;
 use rayon::prelude::*;
 use serde_json::Value;
@@ -169,12 +168,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .exists()
         })
         .collect();
-    println!(
+    say(format_args!(
         "{} runs, {} already done, {} to run",
         runs.len(),
         runs.len() - todo.len(),
         todo.len()
-    );
+    ));
     let failures: Vec<String> = todo
         .par_iter()
         .filter_map(|(scene, controller, seed)| {
@@ -188,7 +187,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &dir,
             ) {
                 Ok(screen) => {
-                    println!("{screen}");
+                    say(&screen);
                     None
                 }
                 Err(e) => Some(format!("{scene} / {controller} / {seed}: {e}")),
@@ -196,7 +195,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect();
     for f in &failures {
-        println!("FAILED {f}");
+        say(format_args!("FAILED {f}"));
     }
     // The tables, from every summary on disk.
     let mut md = String::from("# Benchmark results\n\n");
@@ -304,7 +303,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .write(&args.out.join(format!("coverage-{name}.png")))?;
     }
     std::fs::write(args.out.join("results.md"), &md)?;
-    println!("{md}");
+    say(&md);
     if failures.is_empty() {
         Ok(())
     } else {

@@ -5,7 +5,6 @@
 //! Writes `DIR/summary.json`, `DIR/coverage.csv`, the trajectories `DIR/gt.tum` and
 //! `DIR/est.tum`, and the pictures `DIR/coverage.png`, `DIR/motor_speed.png`, `DIR/ape.png` and
 //! `DIR/map_top.png`; prints a one-screen summary.
-#![allow(clippy::print_stdout)] // a program: it prints its summary
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -15,7 +14,7 @@ use std::time::Instant;
 use clap::Parser;
 use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore};
 use fu_mpc_examples::metrics::write_tum;
-use fu_mpc_examples::report::{Report, write_pictures};
+use fu_mpc_examples::report::{Report, say, write_pictures};
 use fu_mpc_examples::setup::load_scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Point3;
@@ -131,7 +130,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &log.estimate,
     )?;
     write_pictures(&args.out, &log)?;
-    println!("{}", report.screen());
-    println!("wrote {}", args.out.display());
+    say(report.screen());
+    say(format_args!("wrote {}", args.out.display()));
     Ok(())
 }

@@ -9,7 +9,6 @@
 //! `fu_mpc_examples::flight`). Writes `DIR/summary.json`, the trajectories `DIR/gt.tum` and
 //! `DIR/est.tum` (so `evo_ape tum gt.tum est.tum` works) and the odometry's final local map
 //! `DIR/map.ply`, and prints the summary.
-#![allow(clippy::print_stdout)] // a program: it prints its summary
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -19,6 +18,7 @@ use std::time::Instant;
 use fu_mpc_examples::cloud_io::{load_pcd, load_ply};
 use fu_mpc_examples::flight::{Area, FlightConfig, fly, out_and_back_route, route_trajectory};
 use fu_mpc_examples::metrics::{Alignment, ape, trajectory_length, write_tum};
+use fu_mpc_examples::report::say;
 use fu_mpc_examples::scene::Scene;
 use fu_mpc_examples::world::World;
 
@@ -79,7 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let route = out_and_back_route(&area, &world, &config)?;
     let traj = route_trajectory(&route, &config, 0.35)?;
     if std::env::var_os("FLY_DEBUG").is_some() {
-        println!("route {route:?} duration {}", traj.duration());
+        say(format_args!("route {route:?} duration {}", traj.duration()));
     }
     let start = Instant::now();
     let log = fly(&world, &traj, &config, seed)?;
@@ -137,6 +137,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         writeln!(ply, "{:.3} {:.3} {:.3}", p.x, p.y, p.z)?;
     }
     ply.flush()?;
-    println!("{summary}");
+    say(&summary);
     Ok(())
 }

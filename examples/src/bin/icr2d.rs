@@ -6,13 +6,13 @@
 //! iCR + frontier green, frontier cyan, random red) and `DIR/map_E_<strategy>.png` (the
 //! thresholded occupancy map with the path, beside the information map), and prints one JSON
 //! line per environment with the final log det of each strategy.
-#![allow(clippy::print_stdout)] // a program: its result is the JSON line it prints
 
 use std::path::PathBuf;
 
 use fu_mpc_examples::icr2d::{
     GridMap, Strategy, episode_image, log_det_plot, run_episode, write_csv, write_png,
 };
+use fu_mpc_examples::report::say;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut out: Option<PathBuf> = None;
@@ -62,11 +62,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         write_csv(&out.join(format!("logdet_{name}.csv")), &curves)?;
         let (w, h, img) = log_det_plot(&curves);
         write_png(&out.join(format!("logdet_{name}.png")), w, h, &img)?;
-        println!(
+        say(format_args!(
             "{{\"environment\":\"{name}\",\"cells\":{},\"steps\":{steps},{}}}",
             map.occupied.len(),
             finals.join(",")
-        );
+        ));
     }
     Ok(())
 }
