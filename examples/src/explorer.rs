@@ -296,8 +296,9 @@ pub struct ExplorerConfig {
     /// At most this many local-map points (an even subsample) enter the Fisher table;
     /// default 3000.
     pub fisher_points: usize,
-    /// At most this many frontier clusters, the nearest to the UAV, enter each global plan;
-    /// default 50 (the frontier crate's benchmark size).
+    /// At most this many frontier clusters, the nearest to the UAV, enter each global plan
+    /// (the next as many when every target those give has been given up); default 50 (the
+    /// frontier crate's benchmark size).
     pub max_clusters: usize,
     /// The UAV hovers this long at the start while the motor spins up and the odometry builds
     /// its first map \[s\]; default 2.
@@ -600,6 +601,46 @@ impl Scan {
             Self::Icr(c) => c.as_mut(),
         }
     }
+}
+
+/// The targets of the clusters nearest to `here` that are not given up (no viewpoint within
+/// [`EXHAUSTED_RADIUS`] of an `exhausted` one). The clusters are taken in batches of `batch`
+/// by distance (ties by id), each batch planned in id order: the work stays bounded in a large
+/// map and the tour is planned where the UAV can act next. A batch whose targets are all
+/// given up passes to the next, so the frontier beyond the nearest clusters is not taken for
+/// none. Empty when every batch's targets are given up.
+fn open_targets(
+    map: &VoxelMap,
+    mut clusters: Vec<&frontier::Cluster>,
+    here: &Point3<f64>,
+    batch: usize,
+    viewpoints: &ViewpointConfig,
+    exhausted: &[Point3<f64>],
+) -> Result<Vec<Target>, ExploreError> {
+    if clusters.len() > batch {
+        clusters.sort_by(|a, b| {
+            let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
+            d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
+        });
+    }
+    for chunk in clusters.chunks(batch.max(1)) {
+        let mut chunk = chunk.to_vec();
+        chunk.sort_by_key(|c| c.id());
+        let plan = plan_targets_among(map, &chunk, here, &Omnidirectional, |_| true, viewpoints)?;
+        let open: Vec<Target> = plan
+            .targets
+            .into_iter()
+            .filter(|t| {
+                exhausted
+                    .iter()
+                    .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
+            })
+            .collect();
+        if !open.is_empty() {
+            return Ok(open);
+        }
+    }
+    Ok(Vec::new())
 }
 
 /// Whether the segment a → b runs through known-free cells keeping `clearance` from occupied
@@ -1078,40 +1119,20 @@ impl Explorer<'_> {
         {
             self.trail.push(here);
         }
-        // The clusters nearest to the UAV, in id order: the work stays bounded in a large map
-        // and the tour is planned where the UAV can act next.
-        let mut clusters: Vec<&frontier::Cluster> = self
+        let clusters: Vec<&frontier::Cluster> = self
             .mission
             .ids()
             .iter()
             .filter_map(|id| self.frontiers.cluster(*id))
             .collect();
-        if clusters.len() > self.config.max_clusters {
-            clusters.sort_by(|a, b| {
-                let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
-                d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
-            });
-            clusters.truncate(self.config.max_clusters);
-            clusters.sort_by_key(|c| c.id());
-        }
-        let plan = plan_targets_among(
+        let targets = open_targets(
             &self.map,
-            &clusters,
+            clusters,
             &here,
-            &Omnidirectional,
-            |_| true,
+            self.config.max_clusters,
             &self.config.viewpoints,
+            &self.exhausted,
         )?;
-        let exhausted = &self.exhausted;
-        let targets: Vec<&Target> = plan
-            .targets
-            .iter()
-            .filter(|t| {
-                exhausted
-                    .iter()
-                    .all(|e| (e - t.viewpoint).norm() > EXHAUSTED_RADIUS)
-            })
-            .collect();
         self.last_targets = targets.len();
         // The current target is kept until it is reached or its frontier is gone: re-choosing
         // the tour's first target every cycle makes the UAV turn back and forth between
@@ -1261,7 +1282,7 @@ impl Explorer<'_> {
             return Ok(false);
         };
         self.stalled_since = None;
-        let target = targets[i];
+        let target = &targets[i];
         if stuck {
             self.exhausted.push(target.viewpoint);
             self.headway.restart(&here, t);
@@ -2135,6 +2156,75 @@ mod tests {
             map.insert_frame(&o, &hits).unwrap();
         }
         map
+    }
+
+    /// Targets past the nearest batch: in a 24 m hall seen only within 2.5 m of two points
+    /// 17 m apart, with the targets of the clusters near the UAV given up, the planner takes
+    /// the far ones instead of none; with every target given up it has none.
+    #[test]
+    fn given_up_near_targets_pass_planning_to_the_farther_clusters() {
+        let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(24.0, 6.0, 3.0)).unwrap();
+        let config = MapConfig {
+            max_range: 2.5,
+            ..ExplorerConfig::default().map
+        };
+        let mut map = VoxelMap::new(bounds, config).unwrap();
+        let mut frontiers = Frontiers::new(FrontierConfig::default()).unwrap();
+        let (near, far) = (Point3::new(3.0, 3.0, 1.5), Point3::new(20.0, 3.0, 1.5));
+        for o in [near, far] {
+            // Beams to the hall's faces; the map keeps the first 2.5 m of each.
+            let mut hits = Vec::new();
+            for i in 0..120 {
+                for j in 1..60 {
+                    let az = f64::from(i) / 120.0 * core::f64::consts::TAU;
+                    let el = (f64::from(j) / 60.0 - 0.5) * core::f64::consts::PI;
+                    let d = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                    let mut t = 0.0;
+                    while bounds.contains(&(o + d * (t + 0.05))) {
+                        t += 0.05;
+                    }
+                    hits.push(o + d * t);
+                }
+            }
+            let update = map.insert_frame(&o, &hits).unwrap();
+            frontiers.update(&map, &update);
+        }
+        let clusters: Vec<&frontier::Cluster> = frontiers.clusters().collect();
+        let viewpoints = ExplorerConfig::default().viewpoints;
+        let by_centre = |c: &frontier::Cluster, p: &Point3<f64>| (c.center() - p).norm() < 5.0;
+        assert!(clusters.iter().any(|c| by_centre(c, &near)));
+        assert!(clusters.iter().any(|c| by_centre(c, &far)));
+        // Every target any single cluster gives, near ones and all.
+        let mut near_views = Vec::new();
+        let mut all_views = Vec::new();
+        for c in &clusters {
+            let one = open_targets(&map, vec![*c], &near, 1, &viewpoints, &[]).unwrap();
+            all_views.extend(one.iter().map(|t| t.viewpoint));
+            if by_centre(c, &near) {
+                near_views.extend(one.iter().map(|t| t.viewpoint));
+            }
+        }
+        assert!(!near_views.is_empty());
+        // One cluster per batch: the nearest ones' targets are all given up, so the first
+        // batch that has any lies at the far point.
+        let targets =
+            open_targets(&map, clusters.clone(), &near, 1, &viewpoints, &near_views).unwrap();
+        assert!(!targets.is_empty());
+        assert!(targets.iter().all(|t| (t.center - far).norm() < 5.0));
+        // The nearest cluster alone (the old cut) had nothing left to plan.
+        let nearest = clusters
+            .iter()
+            .copied()
+            .min_by(|a, b| {
+                let d = |c: &frontier::Cluster| (c.center() - near).norm_squared();
+                d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
+            })
+            .unwrap();
+        let cut = open_targets(&map, vec![nearest], &near, 1, &viewpoints, &near_views).unwrap();
+        assert!(cut.is_empty());
+        // Every cluster's targets given up: nothing.
+        let none = open_targets(&map, clusters, &near, 1, &viewpoints, &all_views).unwrap();
+        assert!(none.is_empty());
     }
 
     #[test]
