@@ -2123,36 +2123,49 @@ mod tests {
         assert_eq!((occupied, frontier), (0, n));
     }
 
+    /// Where beams from `o` end: `azimuths × elevations` directions (elevations from index
+    /// `first` on, −90° up), each marched in 5 cm steps to its last point inside `bounds`, to
+    /// the first point `stop` accepts, or to `max_length`.
+    fn beam_ends(
+        o: &Point3<f64>,
+        bounds: &Bounds,
+        [azimuths, elevations]: [u32; 2],
+        first: u32,
+        max_length: f64,
+        stop: impl Fn(&Point3<f64>) -> bool,
+    ) -> Vec<Point3<f64>> {
+        let mut ends = Vec::new();
+        for i in 0..azimuths {
+            for j in first..elevations {
+                let az = f64::from(i) / f64::from(azimuths) * core::f64::consts::TAU;
+                let el = (f64::from(j) / f64::from(elevations) - 0.5) * core::f64::consts::PI;
+                let d = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                let mut t = 0.0;
+                let mut end = *o;
+                while t < max_length {
+                    let p = o + d * t;
+                    if !bounds.contains(&p) {
+                        break;
+                    }
+                    end = p;
+                    if stop(&p) {
+                        break;
+                    }
+                    t += 0.05;
+                }
+                ends.push(end);
+            }
+        }
+        ends
+    }
+
     /// A fully known 10 × 6 × 3 m box with a wall across x = 5 leaving a gap at y > 4.
     fn walled_map() -> VoxelMap {
         let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(10.0, 6.0, 3.0)).unwrap();
         let mut map = VoxelMap::new(bounds, MapConfig::default()).unwrap();
         let wall = |p: &Point3<f64>| (p.x - 5.0).abs() < 0.15 && p.y < 4.0;
-        let mut hits = Vec::new();
         for o in [Point3::new(2.0, 3.0, 1.5), Point3::new(8.0, 3.0, 1.5)] {
-            hits.clear();
-            for i in 0..200 {
-                for j in 0..100 {
-                    let az = f64::from(i) / 200.0 * core::f64::consts::TAU;
-                    let el = (f64::from(j) / 100.0 - 0.5) * core::f64::consts::PI;
-                    let d = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
-                    // March to the first wall or bound.
-                    let mut t = 0.0;
-                    let mut end = o;
-                    while t < 12.0 {
-                        let p = o + d * t;
-                        if !bounds.contains(&p) {
-                            break;
-                        }
-                        end = p;
-                        if wall(&p) {
-                            break;
-                        }
-                        t += 0.05;
-                    }
-                    hits.push(end);
-                }
-            }
+            let hits = beam_ends(&o, &bounds, [200, 100], 0, 12.0, wall);
             map.insert_frame(&o, &hits).unwrap();
         }
         map
@@ -2173,19 +2186,7 @@ mod tests {
         let (near, far) = (Point3::new(3.0, 3.0, 1.5), Point3::new(20.0, 3.0, 1.5));
         for o in [near, far] {
             // Beams to the hall's faces; the map keeps the first 2.5 m of each.
-            let mut hits = Vec::new();
-            for i in 0..120 {
-                for j in 1..60 {
-                    let az = f64::from(i) / 120.0 * core::f64::consts::TAU;
-                    let el = (f64::from(j) / 60.0 - 0.5) * core::f64::consts::PI;
-                    let d = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
-                    let mut t = 0.0;
-                    while bounds.contains(&(o + d * (t + 0.05))) {
-                        t += 0.05;
-                    }
-                    hits.push(o + d * t);
-                }
-            }
+            let hits = beam_ends(&o, &bounds, [120, 60], 1, f64::INFINITY, |_| false);
             let update = map.insert_frame(&o, &hits).unwrap();
             frontiers.update(&map, &update);
         }
