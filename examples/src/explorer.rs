@@ -68,6 +68,19 @@ const SQUEEZE_SEARCHES: usize = 4;
 /// sinkhole).
 const SQUEEZE_EXPANSIONS: usize = 250_000;
 
+/// Spacing of the lattice of the last search for a way to a target \[m\] (see
+/// [`lattice_path`]): five map cells.
+const LATTICE_SPACING: f64 = 1.0;
+
+/// A lattice point this close to a target's viewpoint, with a free segment to it, reaches
+/// it \[m\]: one and a half lattice spacings, so beside the nearest lattice point (at most
+/// 0.87 m away) the next ones count too, in case the nearest is blocked.
+const LATTICE_REACH: f64 = 1.5;
+
+/// Lattice points expanded per search (see [`lattice_path`]): up to 100,000 m³ of free
+/// space, more than the maze's or the sinkhole's whole bounds (19,040 and 42,525 m³).
+const LATTICE_EXPANSIONS: usize = 100_000;
+
 /// Spacing of the points of the UAV's trail \[m\] (see [`trail_path`]).
 const TRAIL_SPACING: f64 = 1.0;
 
@@ -771,6 +784,61 @@ fn trail_path(
         })
 }
 
+/// A path from `from` to one of `goals` over a lattice of points [`LATTICE_SPACING`] apart
+/// anchored at `from`: A* over moves to the six nearest lattice points, each move
+/// [`segment_free`] at `clearance` (relaxed near `from` as grid paths are), to a lattice
+/// point within [`LATTICE_REACH`] of a goal with a free segment to the goal; then shortened.
+/// A move spans five map cells, so a budget of expansions covers about a hundred times the
+/// volume the cell search covers: ways of 70–110 m that no budgeted cell search finds.
+/// Narrow openings between lattice points are missed; the cell searches find those. Returns
+/// the goal's index (the nearest goal of the lattice point reached, ties by index) and the path.
+fn lattice_path(
+    map: &VoxelMap,
+    from: &Point3<f64>,
+    goals: &[Point3<f64>],
+    clearance: f64,
+    max_expansions: usize,
+) -> Option<(usize, Vec<Point3<f64>>)> {
+    type Node = [i32; 3];
+    let at = |n: Node| from + Vector3::from(n.map(f64::from)) * LATTICE_SPACING;
+    let relaxed = |n: Node| if n == [0; 3] { ESCAPE_RADIUS } else { 0.0 };
+    let heuristic = |n: Node| {
+        let p = at(n);
+        goals
+            .iter()
+            .map(|g| ((p - g).norm() - LATTICE_REACH).max(0.0))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let goal = |n: Node| {
+        let p = at(n);
+        goals
+            .iter()
+            .enumerate()
+            .map(|(i, g)| ((p - g).norm(), i))
+            .filter(|&(d, i)| {
+                d <= LATTICE_REACH && segment_free(map, &p, &goals[i], clearance, relaxed(n))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+            .map(|(_, i)| i)
+    };
+    let neighbours = |n: Node, out: &mut Vec<(Node, f64)>| {
+        let p = at(n);
+        for k in 0..3 {
+            for s in [-1, 1] {
+                let mut m = n;
+                m[k] += s;
+                if segment_free(map, &p, &at(m), clearance, relaxed(n)) {
+                    out.push((m, LATTICE_SPACING));
+                }
+            }
+        }
+    };
+    let (nodes, i) = astar([0; 3], heuristic, goal, neighbours, max_expansions)?;
+    let mut pts: Vec<Point3<f64>> = nodes.into_iter().map(at).collect();
+    pts.push(goals[i]);
+    Some((i, shortcut(map, &pts, clearance)))
+}
+
 /// A path from the UAV to `to` through the graph: a grid search from `to` to the nearest of
 /// the `reached` nodes (graph nodes the UAV reaches, each with its graph path from the UAV),
 /// then that node's graph path back to the UAV. A target the UAV's part of the graph never
@@ -903,47 +971,26 @@ fn grid_search(
     clearance: f64,
     max_expansions: usize,
 ) -> Option<(Vec<Point3<f64>>, usize)> {
-    use std::cmp::Reverse;
-    use std::collections::BinaryHeap;
     let grid = map.grid();
     let start = grid.cell_of(from)?;
     let near = map.clearance(from, clearance);
     let res = grid.resolution();
-    let mut distances = vec![0.0; goals.len()];
-    let measure = |c: frontier::Cell, out: &mut Vec<f64>| {
+    let nearest = |c: frontier::Cell| {
         let p = grid.center(c);
-        out.clear();
-        out.extend(goals.iter().map(|g| (p - g).norm()));
-        out.iter().copied().fold(f64::INFINITY, f64::min)
+        goals
+            .iter()
+            .map(|g| (p - g).norm())
+            .fold(f64::INFINITY, f64::min)
     };
-    // Costs are non-negative: their bit patterns order like the values.
-    let key = |f: f64| f.to_bits();
-    let mut came: FxHashMap<frontier::Cell, frontier::Cell> = FxHashMap::default();
-    let mut cost: FxHashMap<frontier::Cell, f64> = FxHashMap::default();
+    let mut distances = Vec::with_capacity(goals.len());
+    let goal = |c: frontier::Cell| {
+        let p = grid.center(c);
+        distances.clear();
+        distances.extend(goals.iter().map(|g| (p - g).norm()));
+        reached(c, &distances)
+    };
     let mut ok: FxHashMap<frontier::Cell, bool> = FxHashMap::default();
-    let mut open = BinaryHeap::new();
-    cost.insert(start, 0.0);
-    open.push(Reverse((key(measure(start, &mut distances)), start)));
-    let mut expansions = 0;
-    while let Some(Reverse((_, c))) = open.pop() {
-        measure(c, &mut distances);
-        if let Some(i) = reached(c, &distances) {
-            let mut cells = vec![c];
-            let mut at = c;
-            while let Some(&prev) = came.get(&at) {
-                cells.push(prev);
-                at = prev;
-            }
-            cells.reverse();
-            let mut pts: Vec<Point3<f64>> = cells.iter().map(|&c| grid.center(c)).collect();
-            pts[0] = *from;
-            return Some((pts, i));
-        }
-        expansions += 1;
-        if expansions > max_expansions {
-            return None;
-        }
-        let g = cost.get(&c).copied().unwrap_or(f64::INFINITY);
+    let neighbours = |c: frontier::Cell, out: &mut Vec<(frontier::Cell, f64)>| {
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
@@ -964,17 +1011,66 @@ fn grid_search(
                         end || (map.cell_state(n) == frontier::CellState::Free
                             && map.is_clear(&p, need))
                     });
-                    if !pass {
-                        continue;
-                    }
-                    let step = res * f64::from(dx * dx + dy * dy + dz * dz).sqrt();
-                    let ng = g + step;
-                    if cost.get(&n).is_none_or(|&old| ng < old - 1e-12) {
-                        cost.insert(n, ng);
-                        came.insert(n, c);
-                        open.push(Reverse((key(ng + measure(n, &mut distances)), n)));
+                    if pass {
+                        out.push((n, res * f64::from(dx * dx + dy * dy + dz * dz).sqrt()));
                     }
                 }
+            }
+        }
+    };
+    let (cells, i) = astar(start, nearest, goal, neighbours, max_expansions)?;
+    let mut pts: Vec<Point3<f64>> = cells.iter().map(|&c| grid.center(c)).collect();
+    pts[0] = *from;
+    Some((pts, i))
+}
+
+/// A* from `start`: `heuristic(n)` must not overestimate the cost from `n` to a goal,
+/// `goal(n)` says which goal, if any, `n` reaches, and `neighbours(n, out)` pushes the nodes
+/// one move from `n` with the moves' costs (non-negative). Of equal keys the least node is
+/// expanded first. Returns the nodes from `start` to the goal's and the goal's index; `None`
+/// when no goal is reached within `max_expansions` expansions.
+fn astar<N: Copy + Eq + std::hash::Hash + Ord>(
+    start: N,
+    heuristic: impl Fn(N) -> f64,
+    mut goal: impl FnMut(N) -> Option<usize>,
+    mut neighbours: impl FnMut(N, &mut Vec<(N, f64)>),
+    max_expansions: usize,
+) -> Option<(Vec<N>, usize)> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    // Costs are non-negative: their bit patterns order like the values.
+    let key = |f: f64| f.to_bits();
+    let mut came: FxHashMap<N, N> = FxHashMap::default();
+    let mut cost: FxHashMap<N, f64> = FxHashMap::default();
+    let mut open = BinaryHeap::new();
+    let mut moves = Vec::new();
+    cost.insert(start, 0.0);
+    open.push(Reverse((key(heuristic(start)), start)));
+    let mut expansions = 0;
+    while let Some(Reverse((_, c))) = open.pop() {
+        if let Some(i) = goal(c) {
+            let mut nodes = vec![c];
+            let mut at = c;
+            while let Some(&prev) = came.get(&at) {
+                nodes.push(prev);
+                at = prev;
+            }
+            nodes.reverse();
+            return Some((nodes, i));
+        }
+        expansions += 1;
+        if expansions > max_expansions {
+            return None;
+        }
+        let g = cost.get(&c).copied().unwrap_or(f64::INFINITY);
+        moves.clear();
+        neighbours(c, &mut moves);
+        for &(n, step) in &moves {
+            let ng = g + step;
+            if cost.get(&n).is_none_or(|&old| ng < old - 1e-12) {
+                cost.insert(n, ng);
+                came.insert(n, c);
+                open.push(Reverse((key(ng + heuristic(n)), n)));
             }
         }
     }
@@ -1275,6 +1371,9 @@ impl Explorer<'_> {
             // Then back along the trail to where it came nearest to a target: the UAV flew
             // there, through openings a grid search may need millions of expansions to find.
             .or_else(|| trail_path(&self.map, &self.trail, &here, &views, squeeze))
+            // Last, a coarse search whose reach grows with its budget: the target may lie
+            // a hundred metres away round the far end of the map, beyond every search above.
+            .or_else(|| lattice_path(&self.map, &here, &views, squeeze, LATTICE_EXPANSIONS))
             .map(|(i, path)| (i, path.iter().map(arr).collect()));
         }
         let Some((i, positions)) = chosen else {
@@ -2332,6 +2431,46 @@ mod tests {
         check(&path);
         assert!(trail_path(&map, &[], &from, &[goal], 0.5).is_none());
         assert!(trail_path(&map, &trail, &from, &[], 0.5).is_none());
+    }
+
+    #[test]
+    fn lattice_paths_go_round_walls_and_reach_farther_per_expansion() {
+        let map = walled_map();
+        let (a, b) = (Point3::new(2.0, 2.0, 1.5), Point3::new(8.0, 2.0, 1.5));
+        let check = |path: &[Point3<f64>], from: &Point3<f64>, to: &Point3<f64>, near: f64| {
+            assert_eq!(path.first(), Some(from));
+            assert_eq!(path.last(), Some(to));
+            assert!(path.iter().any(|p| p.y > 4.0), "{path:?}");
+            for (k, w) in path.windows(2).enumerate() {
+                let relaxed = if k == 0 { near } else { 0.0 };
+                assert!(segment_free(&map, &w[0], &w[1], 0.5, relaxed), "{w:?}");
+            }
+        };
+        let (k, path) = lattice_path(&map, &a, &[b], 0.5, 100_000).unwrap();
+        assert_eq!(k, 0);
+        check(&path, &a, &b, 0.0);
+        // A budget the lattice needs is far too small for the cell search.
+        let budget = 60;
+        assert!(lattice_path(&map, &a, &[b], 0.5, budget).is_some());
+        assert!(grid_path(&map, &a, &b, 0.5, budget).is_none());
+        assert!(grid_path(&map, &a, &b, 0.5, 100 * budget).is_some());
+        // Of two goals, the nearer by path (not in a straight line) is reached.
+        let from = Point3::new(3.0, 1.5, 1.5);
+        let behind = Point3::new(5.9, 1.5, 1.5);
+        let open = Point3::new(0.9, 3.6, 1.5);
+        let (k, _) = lattice_path(&map, &from, &[behind, open], 0.5, 100_000).unwrap();
+        assert_eq!(k, 1);
+        // A UAV pushed to 0.2 m from the wall leaves by a first move that keeps less.
+        let c = Point3::new(4.61, 2.0, 1.5);
+        assert!(map.clearance(&c, 0.5) < 0.25);
+        let (_, path) = lattice_path(&map, &c, &[b], 0.5, 100_000).unwrap();
+        check(&path, &c, &b, ESCAPE_RADIUS);
+        // No way through a gap too narrow, to no goal, from or to a point that is not finite.
+        assert!(lattice_path(&map, &a, &[b], 1.2, 100_000).is_none());
+        assert!(lattice_path(&map, &a, &[], 0.5, 100_000).is_none());
+        let nan = Point3::new(f64::NAN, 2.0, 1.5);
+        assert!(lattice_path(&map, &nan, &[b], 0.5, 100_000).is_none());
+        assert!(lattice_path(&map, &a, &[nan], 0.5, 100_000).is_none());
     }
 
     #[test]
