@@ -81,10 +81,6 @@ const LATTICE_REACH: f64 = 1.5;
 /// space, more than the maze's or the sinkhole's whole bounds (19,040 and 42,525 m³).
 const LATTICE_EXPANSIONS: usize = 100_000;
 
-/// Clusters this close to the current target's frontier centre are planned with the nearest
-/// ones \[m\] (see [`open_targets`]): a target's frontier is a few metres across.
-const CURRENT_RADIUS: f64 = 5.0;
-
 /// Spacing of the points of the UAV's trail \[m\] (see [`trail_path`]).
 const TRAIL_SPACING: f64 = 1.0;
 
@@ -314,9 +310,8 @@ pub struct ExplorerConfig {
     /// default 3000.
     pub fisher_points: usize,
     /// At most this many frontier clusters, the nearest to the UAV, enter each global plan
-    /// (the next as many when every target those give has been given up; those within 5 m of
-    /// the current target's frontier count as nearest); default 50 (the frontier crate's
-    /// benchmark size).
+    /// (the next as many when every target those give has been given up); default 50 (the
+    /// frontier crate's benchmark size).
     pub max_clusters: usize,
     /// The UAV hovers this long at the start while the motor spins up and the odometry builds
     /// its first map \[s\]; default 2.
@@ -627,28 +622,17 @@ impl Scan {
 /// map and the tour is planned where the UAV can act next. A batch whose targets are all
 /// given up passes to the next, so the frontier beyond the nearest clusters is not taken for
 /// none. Empty when every batch's targets are given up.
-///
-/// The clusters within [`CURRENT_RADIUS`] of `current` (the frontier centre of the target
-/// the UAV flies to) count as nearest: a target near the edge of the batch would otherwise
-/// leave the plan as the UAV moves away from it and come back as it returns, and the UAV
-/// would turn back and forth between it and another.
 fn open_targets(
     map: &VoxelMap,
     mut clusters: Vec<&frontier::Cluster>,
     here: &Point3<f64>,
-    current: Option<&Point3<f64>>,
     batch: usize,
     viewpoints: &ViewpointConfig,
     exhausted: &[Point3<f64>],
 ) -> Result<Vec<Target>, ExploreError> {
     if clusters.len() > batch {
         clusters.sort_by(|a, b| {
-            let d = |c: &frontier::Cluster| {
-                if current.is_some_and(|k| (c.center() - k).norm() < CURRENT_RADIUS) {
-                    return 0.0;
-                }
-                (c.center() - here).norm_squared()
-            };
+            let d = |c: &frontier::Cluster| (c.center() - here).norm_squared();
             d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
         });
     }
@@ -1241,7 +1225,6 @@ impl Explorer<'_> {
             &self.map,
             clusters,
             &here,
-            self.target.as_ref().map(|(_, centre)| centre),
             self.config.max_clusters,
             &self.config.viewpoints,
             &self.exhausted,
@@ -2287,9 +2270,11 @@ mod tests {
         map
     }
 
-    /// A 24 m hall seen only within 2.5 m of two points 17 m apart (near, far): its map, its
-    /// frontier (shells around both points) and the two points.
-    fn two_seen_spots() -> (VoxelMap, Frontiers, Point3<f64>, Point3<f64>) {
+    /// Targets past the nearest batch: in a 24 m hall seen only within 2.5 m of two points
+    /// 17 m apart, with the targets of the clusters near the UAV given up, the planner takes
+    /// the far ones instead of none; with every target given up it has none.
+    #[test]
+    fn given_up_near_targets_pass_planning_to_the_farther_clusters() {
         let bounds = Bounds::new(Point3::new(0.0, 0.0, 0.0), Point3::new(24.0, 6.0, 3.0)).unwrap();
         let config = MapConfig {
             max_range: 2.5,
@@ -2304,15 +2289,6 @@ mod tests {
             let update = map.insert_frame(&o, &hits).unwrap();
             frontiers.update(&map, &update);
         }
-        (map, frontiers, near, far)
-    }
-
-    /// Targets past the nearest batch: in the hall of [`two_seen_spots`], with the targets of
-    /// the clusters near the UAV given up, the planner takes the far ones instead of none;
-    /// with every target given up it has none.
-    #[test]
-    fn given_up_near_targets_pass_planning_to_the_farther_clusters() {
-        let (map, frontiers, near, far) = two_seen_spots();
         let clusters: Vec<&frontier::Cluster> = frontiers.clusters().collect();
         let viewpoints = ExplorerConfig::default().viewpoints;
         let by_centre = |c: &frontier::Cluster, p: &Point3<f64>| (c.center() - p).norm() < 5.0;
@@ -2322,7 +2298,7 @@ mod tests {
         let mut near_views = Vec::new();
         let mut all_views = Vec::new();
         for c in &clusters {
-            let one = open_targets(&map, vec![*c], &near, None, 1, &viewpoints, &[]).unwrap();
+            let one = open_targets(&map, vec![*c], &near, 1, &viewpoints, &[]).unwrap();
             all_views.extend(one.iter().map(|t| t.viewpoint));
             if by_centre(c, &near) {
                 near_views.extend(one.iter().map(|t| t.viewpoint));
@@ -2331,16 +2307,8 @@ mod tests {
         assert!(!near_views.is_empty());
         // One cluster per batch: the nearest ones' targets are all given up, so the first
         // batch that has any lies at the far point.
-        let targets = open_targets(
-            &map,
-            clusters.clone(),
-            &near,
-            None,
-            1,
-            &viewpoints,
-            &near_views,
-        )
-        .unwrap();
+        let targets =
+            open_targets(&map, clusters.clone(), &near, 1, &viewpoints, &near_views).unwrap();
         assert!(!targets.is_empty());
         assert!(targets.iter().all(|t| (t.center - far).norm() < 5.0));
         // The nearest cluster alone (the old cut) had nothing left to plan.
@@ -2352,44 +2320,11 @@ mod tests {
                 d(a).total_cmp(&d(b)).then(a.id().cmp(&b.id()))
             })
             .unwrap();
-        let cut = open_targets(
-            &map,
-            vec![nearest],
-            &near,
-            None,
-            1,
-            &viewpoints,
-            &near_views,
-        )
-        .unwrap();
+        let cut = open_targets(&map, vec![nearest], &near, 1, &viewpoints, &near_views).unwrap();
         assert!(cut.is_empty());
         // Every cluster's targets given up: nothing.
-        let none = open_targets(&map, clusters, &near, None, 1, &viewpoints, &all_views).unwrap();
+        let none = open_targets(&map, clusters, &near, 1, &viewpoints, &all_views).unwrap();
         assert!(none.is_empty());
-    }
-
-    /// The current target's clusters stay in the batch: from the near spot, one cluster per
-    /// batch plans a near cluster; flying to a far target, a far one, though farther.
-    #[test]
-    fn the_current_targets_clusters_count_as_nearest() {
-        let (map, frontiers, near, far) = two_seen_spots();
-        let clusters: Vec<&frontier::Cluster> = frontiers.clusters().collect();
-        assert!(clusters.len() > 1);
-        let viewpoints = ExplorerConfig::default().viewpoints;
-        let plan = |current: Option<&Point3<f64>>| {
-            open_targets(&map, clusters.clone(), &near, current, 1, &viewpoints, &[]).unwrap()
-        };
-        let nearest = plan(None);
-        assert!(!nearest.is_empty());
-        assert!(nearest.iter().all(|t| (t.center - near).norm() < 5.0));
-        let kept = plan(Some(&far));
-        assert!(!kept.is_empty());
-        assert!(kept.iter().all(|t| (t.center - far).norm() < 5.0));
-        // A current target far from every cluster changes nothing.
-        let elsewhere = Point3::new(12.0, 3.0, 1.5);
-        let same = plan(Some(&elsewhere));
-        let views = |ts: &[Target]| ts.iter().map(|t| t.viewpoint).collect::<Vec<_>>();
-        assert_eq!(views(&same), views(&nearest));
     }
 
     #[test]
