@@ -111,41 +111,45 @@ fn sensor() -> LidarSensor {
 }
 
 fn bench_fisher(c: &mut Criterion) {
-    let cloud = room_cloud(20_000);
     let chain = KinematicChain::default();
-    let cfg = FisherConfig::default();
-    c.bench_function("fisher_table_20k_points_k10_nc72", |b| {
-        b.iter(|| {
-            black_box(
-                FisherTable::build(
-                    black_box(&cloud),
-                    &Isometry3::identity(),
-                    &chain,
-                    &sensor(),
-                    &cfg,
-                )
-                .unwrap(),
-            )
-        });
-    });
+    bench_table(
+        c,
+        "fisher_table_20k_points_k10_nc72",
+        20_000,
+        &chain,
+        &sensor(),
+    );
+    // The table as the explorer builds it every second: 3,000 points of the local map, the
+    // Mid-360 on its side on the motor (`explorer_chain`), whose full ring sees a point over
+    // a long arc of motor angles.
+    let chain = fu_mpc_examples::explorer::explorer_chain();
+    bench_table(
+        c,
+        "fisher_table_3k_points_mid360_explorer_mount",
+        3_000,
+        &chain,
+        &LidarSensor::mid360(),
+    );
 }
 
-/// The table as the explorer builds it every second: 3,000 points of the local map, the
-/// Mid-360 on its side on the motor (`explorer_chain`), whose full ring sees a point over a
-/// long arc of motor angles.
-fn bench_fisher_explorer(c: &mut Criterion) {
-    let cloud = room_cloud(3_000);
-    let chain = fu_mpc_examples::explorer::explorer_chain();
-    let sensor = LidarSensor::mid360();
+/// Times `FisherTable::build` with the default settings on `points` points of the room.
+fn bench_table(
+    c: &mut Criterion,
+    name: &str,
+    points: usize,
+    chain: &KinematicChain,
+    sensor: &LidarSensor,
+) {
+    let cloud = room_cloud(points);
     let cfg = FisherConfig::default();
-    c.bench_function("fisher_table_3k_points_mid360_explorer_mount", |b| {
+    c.bench_function(name, |b| {
         b.iter(|| {
             black_box(
                 FisherTable::build(
                     black_box(&cloud),
                     &Isometry3::identity(),
-                    &chain,
-                    &sensor,
+                    chain,
+                    sensor,
                     &cfg,
                 )
                 .unwrap(),
@@ -355,7 +359,6 @@ fn bench_icr(c: &mut Criterion) {
 criterion_group!(
     benches,
     bench_fisher,
-    bench_fisher_explorer,
     bench_surrogates,
     bench_mpc,
     bench_icr_scan,
