@@ -266,6 +266,35 @@ impl TopoGraph {
         }
     }
 
+    /// Removes the edge between `a` and `b` (both directions), for an edge the caller's
+    /// free-space check no longer accepts (an obstacle seen after the edge was made). Returns
+    /// whether there was such an edge. Nodes stay, so ids do not change.
+    ///
+    /// # Example
+    /// ```
+    /// use topo_tsp::TopoGraph;
+    /// # fn main() -> Result<(), topo_tsp::TspError> {
+    /// let free = |_: &[f64; 3], _: &[f64; 3]| true;
+    /// let mut g = TopoGraph::new();
+    /// let a = g.add_node([0.0, 0.0, 0.0], 3.0, &free)?;
+    /// let b = g.add_node([2.0, 0.0, 0.0], 3.0, &free)?;
+    /// assert!(g.remove_edge(a, b)?);
+    /// assert!(g.shortest_path(a, b)?.is_none());
+    /// assert!(!g.remove_edge(b, a)?);
+    /// # Ok(()) }
+    /// ```
+    ///
+    /// # Errors
+    /// [`TspError::NoSuchNode`] for an unknown id.
+    pub fn remove_edge(&mut self, a: NodeId, b: NodeId) -> Result<bool> {
+        self.check(a)?;
+        self.check(b)?;
+        let before = self.adjacency[a].len();
+        self.adjacency[a].retain(|&(n, _)| n != b);
+        self.adjacency[b].retain(|&(n, _)| n != a);
+        Ok(self.adjacency[a].len() != before)
+    }
+
     fn check(&self, node: NodeId) -> Result<()> {
         if node < self.len() {
             Ok(())
@@ -533,6 +562,32 @@ mod tests {
         // The removed node is gone from the neighbour search too.
         let b = g.add_node([1.5, 0.0, 0.0], 2.0, &free).unwrap();
         assert_eq!(g.neighbors(b).unwrap(), &[(a, 1.5)]);
+    }
+
+    #[test]
+    fn removed_edges_reroute_paths_and_keep_the_nodes() {
+        let free = |_: &[f64; 3], _: &[f64; 3]| true;
+        let mut g = TopoGraph::new();
+        // A square a-b-c-d with the short way a → c through b and the long one through d.
+        let a = g.add_node([0.0, 0.0, 0.0], 2.5, &free).unwrap();
+        let b = g.add_node([2.0, 0.0, 0.0], 2.5, &free).unwrap();
+        let c = g.add_node([2.0, 2.0, 0.0], 2.5, &free).unwrap();
+        let d = g.add_node([0.0, 2.1, 0.0], 2.5, &free).unwrap();
+        assert_eq!(g.shortest_path(a, c).unwrap().unwrap().nodes, vec![a, b, c]);
+        assert!(g.remove_edge(c, b).unwrap());
+        assert!(!g.remove_edge(b, c).unwrap());
+        assert!(!g.remove_edge(a, a).unwrap());
+        assert!(g.neighbors(b).unwrap().iter().all(|e| e.0 != c));
+        assert!(g.neighbors(c).unwrap().iter().all(|e| e.0 != b));
+        let p = g.shortest_path(a, c).unwrap().unwrap();
+        assert_eq!(p.nodes, vec![a, d, c]);
+        assert!((p.length - (2.1 + 0.1f64.hypot(2.0))).abs() < 1e-12);
+        assert_eq!(g.len(), 4);
+        assert!(matches!(
+            g.remove_edge(a, 9),
+            Err(TspError::NoSuchNode { node: 9, .. })
+        ));
+        assert_eq!(g.neighbors(a).unwrap().len(), 2);
     }
 
     #[test]
