@@ -1354,9 +1354,9 @@ impl Explorer<'_> {
         }
         // Last, searches at the clearance trajectories must keep, the grid search first:
         // cells seen after the UAV came in (returns off a wall's edge that the weak miss
-        // keeps) can narrow a pocket's way out below the planning clearance. Such paths do not join the graph.
-        // The nearest targets first, with a larger budget: the tour's order comes from graph
-        // costs, which say nothing of targets the graph does not reach.
+        // keeps) can narrow a pocket's way out below the planning clearance. Such paths do
+        // not join the graph. The nearest targets first, with a larger budget: the tour's
+        // order comes from graph costs, which say nothing of targets the graph does not reach.
         if chosen.is_none() {
             let views: Vec<Point3<f64>> = targets.iter().map(|t| t.viewpoint).collect();
             let squeeze = self.config.flight.radius + SAFETY_MARGIN;
