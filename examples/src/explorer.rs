@@ -2568,6 +2568,11 @@ mod tests {
         assert!(measured_motor(&two, latency).is_none());
         let same_time = [AngleSample::new(0.0, 0.0); 5];
         assert!(measured_motor(&same_time, latency).is_none());
+        let mut nan = [0.0, 0.001, 0.002, 0.003].map(|t| AngleSample::new(t, 10.0 * t));
+        nan[2].angle = f64::NAN;
+        assert!(measured_motor(&nan, latency).is_none());
+        nan[2] = AngleSample::new(f64::INFINITY, 0.02);
+        assert!(measured_motor(&nan, latency).is_none());
     }
 
     #[test]
