@@ -1995,11 +1995,12 @@ fn measured_motor(angles: &[AngleSample], latency: f64) -> Option<MotorState> {
     let mut ata = Matrix3::<f64>::zeros();
     let mut atb = Vector3::<f64>::zeros();
     let mut unwrapped = 0.0;
-    for (i, a) in angles.iter().enumerate().rev() {
-        if i + 1 < angles.len() {
-            // Encoders report angles in [0, 2π): the step between two reads is the short way.
-            unwrapped -= wrap(angles[i + 1].angle - a.angle);
-        }
+    let mut next = last;
+    for a in angles.iter().rev() {
+        // Encoders report angles in [0, 2π): the step between two reads is the short way
+        // (none for the last read itself; a NaN read makes every later term NaN).
+        unwrapped -= wrap(next.angle - a.angle);
+        next = a;
         let x = a.time - last.time;
         let row = Vector3::new(1.0, x, x * x);
         ata += row * row.transpose();
