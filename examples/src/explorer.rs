@@ -389,6 +389,43 @@ impl Default for ExplorerConfig {
 }
 
 impl ExplorerConfig {
+    /// These settings with the optimising controllers' speed band (FU-MPC, its single-term
+    /// variants and iCR) set to `min..=max` \[deg/s\] (default 30–180); their acceleration
+    /// limit is kept.
+    ///
+    /// # Errors
+    /// [`ExploreError::InvalidConfig`] for a bound that is not finite, `min > max`, or a band
+    /// outside the motor's limits ([`ExplorerConfig::motor`]).
+    ///
+    /// # Example
+    /// ```
+    /// use fu_mpc_examples::explorer::ExplorerConfig;
+    /// let config = ExplorerConfig::default().with_band(90.0, 180.0).unwrap();
+    /// assert!((config.mpc.limits.omega_min() - 90f64.to_radians()).abs() < 1e-15);
+    /// assert!(ExplorerConfig::default().with_band(180.0, 90.0).is_err());
+    /// ```
+    pub fn with_band(mut self, min: f64, max: f64) -> Result<Self, ExploreError> {
+        let bad = |reason| ExploreError::InvalidConfig {
+            what: "band",
+            reason,
+        };
+        if !(min.is_finite() && max.is_finite()) {
+            return Err(bad("bounds must be finite [deg/s]"));
+        }
+        if min > max {
+            return Err(bad("the lower bound must not exceed the upper [deg/s]"));
+        }
+        let limits =
+            MotorLimits::try_new(min.to_radians(), max.to_radians(), self.mpc.limits.u_max())?;
+        if limits.omega_min() < self.motor.omega_min()
+            || limits.omega_max() > self.motor.omega_max()
+        {
+            return Err(bad("must lie within the motor's speed limits"));
+        }
+        self.mpc.limits = limits;
+        Ok(self)
+    }
+
     /// Checks the explorer's own settings (the crates check theirs when they are built).
     ///
     /// # Errors
@@ -2084,6 +2121,38 @@ mod tests {
                     Err(ExploreError::UnknownController(_))
                 ),
                 "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_band_sets_the_optimisers_speed_limits_and_rejects_bad_bounds() {
+        let base = ExplorerConfig::default();
+        let deg = |r: f64| r.to_degrees();
+        assert!((deg(base.mpc.limits.omega_min()) - 30.0).abs() < 1e-12);
+        assert!((deg(base.mpc.limits.omega_max()) - 180.0).abs() < 1e-12);
+        let c = base.clone().with_band(90.0, 270.0).unwrap();
+        assert!((deg(c.mpc.limits.omega_min()) - 90.0).abs() < 1e-12);
+        assert!((deg(c.mpc.limits.omega_max()) - 270.0).abs() < 1e-12);
+        assert_eq!(c.mpc.limits.u_max(), base.mpc.limits.u_max());
+        // Everything else is untouched.
+        assert_eq!(ExplorerConfig { mpc: base.mpc, ..c }, base);
+        // Both directions and a single speed are bands too.
+        assert!(base.clone().with_band(-180.0, 180.0).is_ok());
+        assert!(base.clone().with_band(120.0, 120.0).is_ok());
+        for (lo, hi) in [
+            (f64::NAN, 180.0),
+            (30.0, f64::INFINITY),
+            (180.0, 90.0),
+            (30.0, 400.0),
+            (-400.0, 0.0),
+        ] {
+            assert!(
+                matches!(
+                    base.clone().with_band(lo, hi),
+                    Err(ExploreError::InvalidConfig { what: "band", .. })
+                ),
+                "{lo} {hi}"
             );
         }
     }

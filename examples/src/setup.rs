@@ -102,6 +102,30 @@ pub fn load_scene(
     })
 }
 
+/// Parses the programs' `--band MIN,MAX` (deg/s) into its two bounds; see
+/// [`ExplorerConfig::with_band`](crate::explorer::ExplorerConfig::with_band), which checks
+/// them.
+///
+/// # Errors
+/// A message for anything but two comma-separated numbers.
+///
+/// # Example
+/// ```
+/// use fu_mpc_examples::setup::parse_band;
+/// assert_eq!(parse_band("90, 180"), Ok([90.0, 180.0]));
+/// assert!(parse_band("90").is_err());
+/// ```
+pub fn parse_band(s: &str) -> Result<[f64; 2], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [lo, hi] => Ok([lo, hi]),
+        _ => Err(format!("expected MIN,MAX in deg/s, got {s:?}")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -120,6 +144,15 @@ mod tests {
         assert_eq!(s.name, "small");
         assert_eq!(s.area.start, Point3::new(2.0, 2.0, 1.0));
         assert!(s.explorable.contains(&Point3::new(2.0, 2.0, 1.0)));
+    }
+
+    #[test]
+    fn bands_are_two_numbers() {
+        assert_eq!(parse_band("30,180"), Ok([30.0, 180.0]));
+        assert_eq!(parse_band(" -90 , 90 "), Ok([-90.0, 90.0]));
+        for bad in ["", "90", "90,180,270", "a,180", "90;180"] {
+            assert!(parse_band(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]

@@ -19,7 +19,7 @@ use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore
 use fu_mpc_examples::metrics::{time_to_coverage, write_tum};
 use fu_mpc_examples::plot::{LinePlot, PALETTE, Series};
 use fu_mpc_examples::report::{Report, say, write_pictures};
-use fu_mpc_examples::setup::load_scene;
+use fu_mpc_examples::setup::{load_scene, parse_band};
 use rayon::prelude::*;
 use serde_json::Value;
 
@@ -48,6 +48,11 @@ struct Args {
     /// `-clear`).
     #[arg(long)]
     clear_no_return: bool,
+    /// Speed band MIN,MAX of the optimising controllers (fu-mpc, uncertainty, frontier, icr)
+    /// in deg/s; by default 30,180. Runs with it are kept apart (their directories end in
+    /// `-band_MIN_MAX`).
+    #[arg(long, value_parser = parse_band, allow_hyphen_values = true)]
+    band: Option<[f64; 2]>,
     /// Runs at once (default: one per core).
     #[arg(long)]
     jobs: Option<usize>,
@@ -61,9 +66,15 @@ fn run_dir(
     scene: &str,
     controller: &ControllerKind,
     seed: u64,
-    clear: bool,
+    args: &Args,
 ) -> PathBuf {
-    let suffix = if clear { "-clear" } else { "" };
+    let mut suffix = String::new();
+    if args.clear_no_return {
+        suffix += "-clear";
+    }
+    if let Some([lo, hi]) = args.band {
+        suffix += &format!("-band_{lo}_{hi}");
+    }
     let name = format!("{scene}-{controller}-{seed}{suffix}").replace([':', '/', '\\'], "_");
     out.join("runs").join(name)
 }
@@ -73,16 +84,18 @@ fn run_one(
     scene_spec: &str,
     controller: ControllerKind,
     seed: u64,
-    max_time: f64,
-    clear_on_no_return: bool,
+    args: &Args,
     dir: &Path,
 ) -> Result<String, Box<dyn std::error::Error + Send + Sync>> {
-    let config = ExplorerConfig {
+    let mut config = ExplorerConfig {
         controller,
-        max_time,
-        clear_on_no_return,
+        max_time: args.max_time,
+        clear_on_no_return: args.clear_no_return,
         ..ExplorerConfig::default()
     };
+    if let Some([lo, hi]) = args.band {
+        config = config.with_band(lo, hi)?;
+    }
     let scene = load_scene(
         scene_spec,
         seed,
@@ -163,7 +176,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let todo: Vec<_> = runs
         .iter()
         .filter(|(s, c, seed)| {
-            !run_dir(&args.out, s, c, *seed, args.clear_no_return)
+            !run_dir(&args.out, s, c, *seed, &args)
                 .join("summary.json")
                 .exists()
         })
@@ -177,15 +190,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let failures: Vec<String> = todo
         .par_iter()
         .filter_map(|(scene, controller, seed)| {
-            let dir = run_dir(&args.out, scene, controller, *seed, args.clear_no_return);
-            match run_one(
-                scene,
-                *controller,
-                *seed,
-                args.max_time,
-                args.clear_no_return,
-                &dir,
-            ) {
+            let dir = run_dir(&args.out, scene, controller, *seed, &args);
+            match run_one(scene, *controller, *seed, &args, &dir) {
                 Ok(screen) => {
                     say(&screen);
                     None
@@ -203,14 +209,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         md,
         "Means over seeds {:?}; time budget {} s. Exploration time and trajectory length are \
          averaged over finished runs only (— when none finished); the time to 99 % coverage \
-         over the runs that reached it (how many in brackets).{}\n",
+         over the runs that reached it (how many in brackets).{}{}\n",
         args.seeds,
         args.max_time,
         if args.clear_no_return {
             " Beams that return nothing clear the map along them (`--clear-no-return`)."
         } else {
             ""
-        }
+        },
+        args.band.map_or(String::new(), |[lo, hi]| format!(
+            " The optimising controllers keep the motor within {lo}–{hi} deg/s (`--band`)."
+        ))
     )?;
     for scene_spec in &args.scenes {
         let mut plot = LinePlot {
@@ -227,15 +236,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let dirs: Vec<PathBuf> = args
                 .seeds
                 .iter()
-                .map(|&seed| {
-                    run_dir(
-                        &args.out,
-                        scene_spec,
-                        controller,
-                        seed,
-                        args.clear_no_return,
-                    )
-                })
+                .map(|&seed| run_dir(&args.out, scene_spec, controller, seed, &args))
                 .collect();
             let summaries: Vec<Value> = dirs
                 .iter()

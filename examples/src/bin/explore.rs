@@ -15,7 +15,7 @@ use clap::Parser;
 use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore};
 use fu_mpc_examples::metrics::write_tum;
 use fu_mpc_examples::report::{Report, say, write_pictures};
-use fu_mpc_examples::setup::load_scene;
+use fu_mpc_examples::setup::{load_scene, parse_band};
 use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Point3;
 
@@ -47,6 +47,10 @@ struct Args {
     /// to the sky, e.g. a cloud without a ceiling); off by default.
     #[arg(long)]
     clear_no_return: bool,
+    /// Speed band MIN,MAX of the optimising controllers (fu-mpc, uncertainty, frontier, icr)
+    /// in deg/s; by default 30,180. Fixed speeds and rigid-yaw ignore it.
+    #[arg(long, value_parser = parse_band, allow_hyphen_values = true)]
+    band: Option<[f64; 2]>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -65,12 +69,15 @@ fn parse_point(s: &str) -> Result<Point3<f64>, String> {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args = Args::parse();
-    let config = ExplorerConfig {
+    let mut config = ExplorerConfig {
         controller: args.controller,
         max_time: args.max_time,
         clear_on_no_return: args.clear_no_return,
         ..ExplorerConfig::default()
     };
+    if let Some([lo, hi]) = args.band {
+        config = config.with_band(lo, hi)?;
+    }
     let scene = load_scene(
         &args.scene,
         args.seed,
