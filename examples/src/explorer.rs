@@ -2137,8 +2137,9 @@ mod tests {
         assert_eq!(c.mpc.limits.u_max(), base.mpc.limits.u_max());
         // Everything else is untouched.
         assert_eq!(ExplorerConfig { mpc: base.mpc, ..c }, base);
-        // Both directions and a single speed are bands too.
+        // Both directions, the motor's whole range and a single speed are bands too.
         assert!(base.clone().with_band(-180.0, 180.0).is_ok());
+        assert!(base.clone().with_band(-360.0, 360.0).is_ok());
         assert!(base.clone().with_band(120.0, 120.0).is_ok());
         for (lo, hi) in [
             (f64::NAN, 180.0),
