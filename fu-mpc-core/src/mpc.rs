@@ -372,20 +372,28 @@ impl FuMpc {
 
     /// Clips `u` in place so that |u_k| ≤ u_max and every ω_k stays in the limits.
     fn make_feasible(&self, omega0: f64, u: &mut [f64]) {
+        let mut w = omega0;
+        for x in u.iter_mut() {
+            *x = self.clip(&mut w, *x);
+        }
+    }
+
+    /// One step of [`FuMpc::make_feasible`]: `x` clipped so that |x| ≤ u_max and the speed
+    /// `w` after it stays in the limits (0 for a non-finite `x`); `w` moves on by the step.
+    #[inline]
+    fn clip(&self, w: &mut f64, x: f64) -> f64 {
         let l = &self.config.limits;
         let dt = self.config.dt;
         let inv_dt = 1.0 / dt;
-        let mut w = omega0;
-        for x in u.iter_mut() {
-            let lo = ((l.omega_min() - w) * inv_dt).max(-l.u_max());
-            let hi = ((l.omega_max() - w) * inv_dt).min(l.u_max());
-            *x = if x.is_finite() {
-                x.clamp(lo, hi)
-            } else {
-                0.0f64.clamp(lo, hi)
-            };
-            w = (w + *x * dt).clamp(l.omega_min(), l.omega_max());
-        }
+        let lo = ((l.omega_min() - *w) * inv_dt).max(-l.u_max());
+        let hi = ((l.omega_max() - *w) * inv_dt).min(l.u_max());
+        let x = if x.is_finite() {
+            x.clamp(lo, hi)
+        } else {
+            0.0f64.clamp(lo, hi)
+        };
+        *w = (*w + x * dt).clamp(l.omega_min(), l.omega_max());
+        x
     }
 
     /// The cost terms of a feasible sequence, with θ from the affine model.
@@ -492,6 +500,43 @@ impl FuMpc {
                 s[k] = d;
             }
             let du = x - prev;
+            smooth += du * du;
+            prev = *x;
+        }
+        cost + c.gamma * smooth
+    }
+
+    /// [`FuMpc::make_feasible`] then [`FuMpc::total`] of `u`, in one pass over the
+    /// sequence when the combined tables are valid (the same operations in the same order,
+    /// so the same sequence and cost to the bit).
+    fn feasible_total(
+        &self,
+        theta0: f64,
+        omega0: f64,
+        u: &mut [f64],
+        fisher: Option<&PeriodicPwl>,
+    ) -> f64 {
+        if !self.combined_valid {
+            self.make_feasible(omega0, u);
+            return self.total(theta0, omega0, u, fisher, None);
+        }
+        let c = &self.config;
+        let dt = c.dt;
+        // The clipped speed of `make_feasible` and the unclipped one of `total`.
+        let mut wf = omega0;
+        let (mut th, mut w) = (theta0, omega0);
+        let (mut cost, mut smooth) = (0.0, 0.0);
+        let mut prev = 0.0;
+        for (k, (x, table)) in u.iter_mut().zip(&self.combined).enumerate() {
+            *x = self.clip(&mut wf, *x);
+            w += *x * dt; // eq. (11), inside the limits
+            th += w * dt; // eq. (12)
+            let (v, _) = table.eval(th);
+            cost += v;
+            if k == 0 {
+                prev = *x;
+            }
+            let du = *x - prev;
             smooth += du * du;
             prev = *x;
         }
@@ -616,8 +661,7 @@ impl FuMpc {
                 for j in 0..n {
                     w.trial[j] = w.best[j] + t * (w.x[j] - w.best[j]);
                 }
-                self.make_feasible(omega0, &mut w.trial);
-                let tc = self.total(theta0, omega0, &w.trial, fisher, None);
+                let tc = self.feasible_total(theta0, omega0, &mut w.trial, fisher);
                 if tc < cost - 1e-12 * (1.0 + cost.abs()) {
                     w.best.copy_from_slice(&w.trial);
                     cost = tc;
@@ -812,6 +856,61 @@ mod tests {
                     assert_eq!(shared.to_bits(), whole.to_bits(), "{m} {shared} {whole}");
                     head.step(&mpc, cruise, m);
                 }
+            }
+        }
+    }
+
+    /// The line search's one-pass clip and cost give what clipping and then costing give, to
+    /// the bit, for sequences inside, outside and far outside the limits, with NaN too.
+    #[test]
+    fn one_pass_clip_and_cost_match_the_two_passes() {
+        let cfg = MpcConfig::default();
+        let n = cfg.horizon;
+        let mut mpc = FuMpc::new(cfg, KinematicChain::default()).unwrap();
+        let refs: Vec<_> = (0..=n)
+            .map(|i| {
+                let t = 0.1 * f64::from(u32::try_from(i).unwrap());
+                Isometry3::from_parts(
+                    Translation3::new(t, 0.3 * t, 0.1),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.4 * t),
+                )
+            })
+            .collect();
+        let targets = [FrontierTarget {
+            center: Point3::new(3.0, -2.0, 0.5),
+            score: 12.0,
+        }];
+        let input = ScanInput {
+            motor: MotorState::new(0.0, 0.0),
+            reference: &refs,
+            targets: &targets,
+            fisher: None,
+        };
+        mpc.build_surrogates(&input).unwrap();
+        let fisher =
+            PeriodicPwl::new((0..72).map(|c| 1.5 + (0.4 * f64::from(c)).sin()).collect()).unwrap();
+        mpc.build_combined(Some(&fisher)).unwrap();
+        assert!(mpc.combined_valid);
+        for seed in 0..200u32 {
+            let scale = [0.5, 6.0, 40.0][(seed % 3) as usize];
+            let mut u: Vec<f64> = (0..n)
+                .map(|k| {
+                    let k = f64::from(u32::try_from(k).unwrap());
+                    (f64::from(seed) * 0.37 + 1.3 * k).sin() * scale
+                })
+                .collect();
+            if seed % 7 == 0 {
+                u[(seed as usize) % n] = f64::NAN;
+            }
+            let (theta0, omega0) = (0.1 * f64::from(seed), -3.0 + 0.03 * f64::from(seed));
+            let mut a = u.clone();
+            mpc.make_feasible(omega0, &mut a);
+            let want = mpc.total(theta0, omega0, &a, Some(&fisher), None);
+            let mut b = u;
+            let got = mpc.feasible_total(theta0, omega0, &mut b, Some(&fisher));
+            assert_eq!(got.to_bits(), want.to_bits(), "seed {seed}");
+            for (x, y) in a.iter().zip(&b) {
+                assert_eq!(x.to_bits(), y.to_bits(), "seed {seed}");
             }
         }
     }
