@@ -801,22 +801,44 @@ mod tests {
     use lidar_kinematics::MotorState;
     use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
+    /// A default controller with its surrogates built along a reference flying at 1 m/s in x
+    /// and `vy` in y at height `z` while yawing at `yaw_rate`, and its combined tables built
+    /// with `fisher`.
+    fn prepared(
+        vy: f64,
+        z: f64,
+        yaw_rate: f64,
+        targets: &[FrontierTarget],
+        fisher: &PeriodicPwl,
+    ) -> FuMpc {
+        let cfg = MpcConfig::default();
+        let mut mpc = FuMpc::new(cfg, KinematicChain::default()).unwrap();
+        let refs: Vec<_> = (0..=cfg.horizon)
+            .map(|i| {
+                let t = 0.1 * f64::from(u32::try_from(i).unwrap());
+                Isometry3::from_parts(
+                    Translation3::new(t, vy * t, z),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_rate * t),
+                )
+            })
+            .collect();
+        let input = ScanInput {
+            motor: MotorState::new(0.0, 0.0),
+            reference: &refs,
+            targets,
+            fisher: None,
+        };
+        mpc.build_surrogates(&input).unwrap();
+        mpc.build_combined(Some(fisher)).unwrap();
+        mpc
+    }
+
     /// A cruise-then-stop candidate rolled out from the shared cruise phase costs, to the
     /// bit, what the whole sequence costs.
     #[test]
     fn shared_cruise_phases_cost_what_whole_sequences_cost() {
         let cfg = MpcConfig::default();
         let n = cfg.horizon;
-        let mut mpc = FuMpc::new(cfg, KinematicChain::default()).unwrap();
-        let refs: Vec<_> = (0..=n)
-            .map(|i| {
-                let t = 0.1 * f64::from(u32::try_from(i).unwrap());
-                Isometry3::from_parts(
-                    Translation3::new(t, -0.4 * t, 0.2),
-                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -0.5 * t),
-                )
-            })
-            .collect();
         let targets = [
             FrontierTarget {
                 center: Point3::new(2.0, 3.0, 0.5),
@@ -827,16 +849,9 @@ mod tests {
                 score: 30.0,
             },
         ];
-        let input = ScanInput {
-            motor: MotorState::new(0.0, 0.0),
-            reference: &refs,
-            targets: &targets,
-            fisher: None,
-        };
-        mpc.build_surrogates(&input).unwrap();
         let fisher =
             PeriodicPwl::new((0..72).map(|c| 1.0 + (0.2 * f64::from(c)).cos()).collect()).unwrap();
-        mpc.build_combined(Some(&fisher)).unwrap();
+        let mpc = prepared(-0.4, 0.2, -0.5, &targets, &fisher);
         let l = cfg.limits;
         let mut u = vec![0.0; n];
         for (theta0, omega0) in [(0.3, 1.0), (5.9, -3.1), (2.0, 0.0), (1.0, 3.0)] {
@@ -864,32 +879,14 @@ mod tests {
     /// the bit, for sequences inside, outside and far outside the limits, with NaN too.
     #[test]
     fn one_pass_clip_and_cost_match_the_two_passes() {
-        let cfg = MpcConfig::default();
-        let n = cfg.horizon;
-        let mut mpc = FuMpc::new(cfg, KinematicChain::default()).unwrap();
-        let refs: Vec<_> = (0..=n)
-            .map(|i| {
-                let t = 0.1 * f64::from(u32::try_from(i).unwrap());
-                Isometry3::from_parts(
-                    Translation3::new(t, 0.3 * t, 0.1),
-                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.4 * t),
-                )
-            })
-            .collect();
+        let n = MpcConfig::default().horizon;
         let targets = [FrontierTarget {
             center: Point3::new(3.0, -2.0, 0.5),
             score: 12.0,
         }];
-        let input = ScanInput {
-            motor: MotorState::new(0.0, 0.0),
-            reference: &refs,
-            targets: &targets,
-            fisher: None,
-        };
-        mpc.build_surrogates(&input).unwrap();
         let fisher =
             PeriodicPwl::new((0..72).map(|c| 1.5 + (0.4 * f64::from(c)).sin()).collect()).unwrap();
-        mpc.build_combined(Some(&fisher)).unwrap();
+        let mpc = prepared(0.3, 0.1, 0.4, &targets, &fisher);
         assert!(mpc.combined_valid);
         for seed in 0..200u32 {
             let scale = [0.5, 6.0, 40.0][(seed % 3) as usize];
@@ -919,18 +916,8 @@ mod tests {
     #[test]
     fn combined_tables_match_the_separate_terms() {
         let cfg = MpcConfig::default();
-        let mut mpc = FuMpc::new(cfg, KinematicChain::default()).unwrap();
         let fisher =
             PeriodicPwl::new((0..72).map(|c| 2.0 + (0.3 * f64::from(c)).sin()).collect()).unwrap();
-        let refs: Vec<_> = (0..=cfg.horizon)
-            .map(|i| {
-                let t = 0.1 * f64::from(u32::try_from(i).unwrap());
-                Isometry3::from_parts(
-                    Translation3::new(t, 0.5 * t, 0.0),
-                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3 * t),
-                )
-            })
-            .collect();
         let targets = [
             FrontierTarget {
                 center: Point3::new(3.0, 1.0, 0.0),
@@ -941,14 +928,7 @@ mod tests {
                 score: 5.0,
             },
         ];
-        let input = ScanInput {
-            motor: MotorState::new(0.4, 1.0),
-            reference: &refs,
-            targets: &targets,
-            fisher: None,
-        };
-        mpc.build_surrogates(&input).unwrap();
-        mpc.build_combined(Some(&fisher)).unwrap();
+        let mut mpc = prepared(0.5, 0.0, 0.3, &targets, &fisher);
         assert!(mpc.combined_valid);
         let mut s1 = vec![0.0; cfg.horizon];
         let mut s2 = vec![0.0; cfg.horizon];
