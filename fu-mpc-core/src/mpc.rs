@@ -167,7 +167,8 @@ pub struct MpcSolution {
 /// terms are evaluated at the predicted states θ_1..θ_N, the ones the controls move (θ_0 is
 /// fixed). Every sequence it considers satisfies (20)–(21), so the saturation of (11) stays
 /// inactive and θ is affine in u (when ω_0 itself is outside the limits, the prediction
-/// starts from the nearest limit).
+/// starts from the nearest limit). Weights so large that every sequence's cost overflows (α
+/// or β near `f64::MAX`) make [`ScanController::command`] return [`CoreError::NonFinite`].
 ///
 /// # Example
 /// ```
@@ -618,6 +619,14 @@ impl FuMpc {
             }
         }
         self.solution.warm_start_cost = best_cost;
+        if !best_cost.is_finite() {
+            // Weights so large that every sequence's cost overflows (α or β near f64::MAX):
+            // no sequence is better than another.
+            self.work = w;
+            return Err(CoreError::NonFinite {
+                what: "weighted cost (alpha, beta or gamma too large)",
+            });
+        }
         // Sequential linearisation.
         let mut cost = best_cost;
         let mut status = ScanStatus::IterationLimit;

@@ -3,6 +3,7 @@
 use lidar_kinematics::{KinematicChain, MotorModel, MotorState};
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 
+use crate::error::invalid;
 use crate::{CoreError, Result};
 
 /// One predicted scanning state (p_i, θ_i, ω_i, d_i^W).
@@ -52,7 +53,9 @@ impl Default for PredictedStep {
 ///
 /// # Errors
 /// [`CoreError::LengthMismatch`] unless `reference.len() == out.len() == controls.len() + 1`;
-/// kinematic errors for a non-finite state, command or pose, or Δt ≤ 0.
+/// [`CoreError::NonFinite`] for a non-finite initial state or pose translation,
+/// [`CoreError::InvalidConfig`] for Δt not positive and finite, and kinematic errors for a
+/// non-finite command or a bad attitude.
 pub fn predict_into(
     chain: &KinematicChain,
     motor: &MotorModel,
@@ -75,12 +78,25 @@ pub fn predict_into(
             });
         }
     }
+    if !(initial.theta.is_finite() && initial.omega.is_finite()) {
+        return Err(CoreError::NonFinite {
+            what: "motor state",
+        });
+    }
+    if !(dt > 0.0 && dt.is_finite()) {
+        return invalid("dt", dt, "must be positive and finite [s]");
+    }
     let mut state = initial;
     for i in 0..n {
         if i > 0 {
             state = motor.step(state, controls[i - 1], dt)?; // eqs. (11)–(12)
         }
         let pose = &reference[i];
+        if !pose.translation.vector.iter().all(|v| v.is_finite()) {
+            return Err(CoreError::NonFinite {
+                what: "reference pose",
+            });
+        }
         let direction = chain.scan_direction(&pose.rotation, state.theta)?; // eq. (14)
         out[i] = PredictedStep {
             position: Point3::from(pose.translation.vector), // eq. (13)

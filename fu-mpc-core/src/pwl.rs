@@ -33,7 +33,8 @@ impl PeriodicPwl {
     /// A function from its values at N_c uniformly spaced knots starting at θ = 0.
     ///
     /// # Errors
-    /// [`CoreError::Empty`] without knots, [`CoreError::NonFinite`] for a NaN or infinite value.
+    /// [`CoreError::Empty`] without knots, [`CoreError::NonFinite`] for a NaN or infinite value
+    /// or values so far apart (near ±`f64::MAX`) that a slope between knots overflows.
     pub fn new(values: Vec<f64>) -> Result<Self> {
         if values.is_empty() {
             return Err(CoreError::Empty {
@@ -46,6 +47,16 @@ impl PeriodicPwl {
         // Knot counts are far below 2^53.
         #[allow(clippy::cast_precision_loss)]
         let scale = values.len() as f64 / TAU;
+        let (lo, hi) = values
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+                (l.min(v), h.max(v))
+            });
+        if !((hi - lo) * scale).is_finite() {
+            return Err(CoreError::NonFinite {
+                what: "knot value slope",
+            });
+        }
         Ok(Self { values, scale })
     }
 
@@ -108,6 +119,10 @@ impl PeriodicPwl {
             }
         }
         if !x.is_finite() {
+            if theta.is_finite() {
+                // |θ| near f64::MAX: θ N_c / 2π overflowed; one turn's remainder does not.
+                return self.eval(theta.rem_euclid(TAU));
+            }
             return (self.values[0], 0.0);
         }
         // x ∈ [0, n], so truncation is the floor (no libm call, no integer division in the

@@ -2,7 +2,7 @@
 
 use core::f64::consts::{PI, TAU};
 
-use lidar_kinematics::KinematicChain;
+use lidar_kinematics::{KinematicChain, KinematicsError};
 use nalgebra::{Isometry3, Point3, UnitQuaternion};
 
 use crate::error::{invalid, too_large};
@@ -45,11 +45,18 @@ impl UtilityConfig {
     /// Checks every setting.
     ///
     /// # Errors
-    /// [`CoreError::InvalidConfig`] for σ or the distance gate not positive and finite, or an
-    /// angular gate outside (0, π].
+    /// [`CoreError::InvalidConfig`] for σ or the distance gate not positive and finite (σ also
+    /// with 2σ² a normal float: between about 1e-154 and 1e154 m), or an angular gate outside
+    /// (0, π].
     pub fn validate(&self) -> Result<()> {
-        if !(self.sigma.is_finite() && self.sigma > 0.0) {
-            return invalid("sigma", self.sigma, "must be positive and finite [m]");
+        // 2σ² must stay a positive finite number too: eq. (17) divides by it.
+        let two_s2 = 2.0 * self.sigma * self.sigma;
+        if !(self.sigma.is_finite() && self.sigma > 0.0 && two_s2.is_normal()) {
+            return invalid(
+                "sigma",
+                self.sigma,
+                "must be positive and finite, with 2 sigma^2 a normal float [m]",
+            );
         }
         if !(self.max_distance.is_finite() && self.max_distance > 0.0) {
             return invalid(
@@ -80,7 +87,8 @@ impl UtilityConfig {
 ///
 /// # Errors
 /// An invalid `config`, no knots or more than [`MAX_KNOTS`](crate::MAX_KNOTS), a NaN or
-/// infinite target or pose (translation or rotation), a negative score, or scores so large
+/// infinite target or pose (translation or rotation), a pose whose quaternion is not of unit
+/// norm (to 1e-6, as the kinematic chain checks), a negative score, or scores so large
 /// that their sum overflows. On error `out` may hold partial tables.
 pub fn frontier_surrogates(
     chain: &KinematicChain,
@@ -127,6 +135,15 @@ pub fn frontier_surrogates(
             return Err(CoreError::NonFinite {
                 what: "reference pose",
             });
+        }
+        // The same test as the kinematic chain's: a scaled quaternion is no rotation.
+        let norm = pose.rotation.norm();
+        if (norm - 1.0).abs() > 1e-6 {
+            return Err(KinematicsError::NotUnitRotation {
+                what: "reference pose",
+                norm,
+            }
+            .into());
         }
         values.fill(0.0);
         let to_motor = (pose.rotation * k.motor_base)
@@ -669,15 +686,23 @@ mod tests {
             score: 1.0,
         };
         let mut out = Vec::new();
-        // 2σ² underflows to 0: −d²/0 = −∞ gives r = 0, as libm's exp does ...
+        // A σ whose 2σ² underflows is refused up front (−0/0 at a target would be NaN).
         let tiny = UtilityConfig {
             sigma: 1e-200,
             ..UtilityConfig::default()
         };
-        frontier_surrogates(&chain, &pose, &[at(1.0)], &tiny, 8, &mut out).unwrap();
+        for x in [1.0, 0.0] {
+            let got = frontier_surrogates(&chain, &pose, &[at(x)], &tiny, 8, &mut out);
+            assert!(matches!(got, Err(CoreError::InvalidConfig { .. })));
+        }
+        // The smallest σ accepted: r = 0 away from the target (−d²/2σ² = −∞ or far below
+        // the exponent's range), the whole reward at it.
+        let least = UtilityConfig {
+            sigma: 1e-150,
+            ..UtilityConfig::default()
+        };
+        frontier_surrogates(&chain, &pose, &[at(1.0)], &least, 8, &mut out).unwrap();
         assert!(out[0].values().iter().all(|v| *v == 0.0));
-        // ... and −0/0 = NaN at the target makes R_total NaN: an error, as before.
-        assert!(frontier_surrogates(&chain, &pose, &[at(0.0)], &tiny, 8, &mut out).is_err());
         // Subnormal r only (d²/2σ² ≈ 730): exact through libm, and J stays in [0, 1].
         let small = UtilityConfig {
             sigma: 0.1,

@@ -133,7 +133,8 @@ impl InformationMap {
     ///
     /// # Errors
     /// As [`InformationMap::squared_exponential`]; [`CoreError::LengthMismatch`] for a matrix
-    /// of the wrong size, [`CoreError::NonFinite`] for non-finite entries.
+    /// of the wrong size, [`CoreError::NonFinite`] for non-finite entries or an inverse that
+    /// overflows.
     pub fn dense_covariance(cells: Vec<Point3<f64>>, covariance: &[f64]) -> Result<Self> {
         check_cells(&cells)?;
         let n = cells.len();
@@ -149,9 +150,10 @@ impl InformationMap {
                 what: "prior covariance",
             });
         }
-        // Symmetrised, so a tiny asymmetry from the caller's arithmetic does no harm.
+        // Symmetrised, so a tiny asymmetry from the caller's arithmetic does no harm (halved
+        // first: entries near f64::MAX do not overflow).
         let sigma = Mat::from_fn(n, n, |i, j| {
-            0.5 * (covariance[i * n + j] + covariance[j * n + i])
+            0.5 * covariance[i * n + j] + 0.5 * covariance[j * n + i]
         });
         let y0 = spd_inverse(sigma, "prior covariance")?;
         Ok(Self {
@@ -192,8 +194,9 @@ impl InformationMap {
     /// with a diagonal M), e.g. after executing a control.
     ///
     /// # Errors
-    /// [`CoreError::LengthMismatch`], or [`CoreError::InvalidConfig`] for negative or
-    /// non-finite information.
+    /// [`CoreError::LengthMismatch`], [`CoreError::InvalidConfig`] for negative or
+    /// non-finite information, or [`CoreError::NonFinite`] when a sum would overflow (Y₀ is
+    /// then left as it was).
     pub fn add_information(&mut self, m: &[f64]) -> Result<()> {
         if m.len() != self.cells.len() {
             return Err(CoreError::LengthMismatch {
@@ -204,6 +207,16 @@ impl InformationMap {
         }
         if let Some(&bad) = m.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
             return invalid("information update", bad, "must be non-negative and finite");
+        }
+        // Checked before anything changes: a sum that overflows leaves Y₀ as it was.
+        let overflows = match &self.prior {
+            Prior::Diagonal(d) => d.iter().zip(m).any(|(y, v)| !(y + v).is_finite()),
+            Prior::Dense(y) => (0..m.len()).any(|i| !(y[(i, i)] + m[i]).is_finite()),
+        };
+        if overflows {
+            return Err(CoreError::NonFinite {
+                what: "prior information after the update",
+            });
         }
         match &mut self.prior {
             Prior::Diagonal(d) => d.iter_mut().zip(m).for_each(|(y, v)| *y += v),
@@ -299,10 +312,21 @@ fn inverse_from_factor(l: MatRef<'_, f64>) -> Mat<f64> {
     out
 }
 
-/// The inverse of a symmetric positive definite matrix.
+/// The inverse of a symmetric positive definite matrix; [`CoreError::NonFinite`] when it
+/// overflows (a covariance with entries near the smallest floats).
 fn spd_inverse(a: Mat<f64>, what: &'static str) -> Result<Mat<f64>> {
     let l = cholesky(a, what)?;
-    Ok(inverse_from_factor(l.as_ref()))
+    let inv = inverse_from_factor(l.as_ref());
+    for j in 0..inv.ncols() {
+        for i in 0..inv.nrows() {
+            if !inv[(i, j)].is_finite() {
+                return Err(CoreError::NonFinite {
+                    what: "inverse of the prior covariance",
+                });
+            }
+        }
+    }
+    Ok(inv)
 }
 
 #[cfg(test)]

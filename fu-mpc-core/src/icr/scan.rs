@@ -99,7 +99,9 @@ impl IcrScanConfig {
 /// Fisher table is replaced by the differentiable weight w = 1 − Φ(d) of eq. (21) over a signed
 /// distance d to the sensor's field of view and range (the largest of the distances to its
 /// elevation cones, azimuth half-planes and range shells). Each ascent step is projected onto
-/// the motor limits (|a| ≤ u_max, then |ω| within bounds along the rollout).
+/// the motor limits (|a| ≤ u_max, then |ω| within bounds along the rollout); a speed ω₀
+/// outside the limits is planned from the nearest limit, as FU-MPC's is, so every command
+/// satisfies |a| ≤ u_max.
 ///
 /// The cloud is given by [`IcrScan::set_cloud`] (like [`FisherTable::build`](crate::FisherTable::build),
 /// once per new local map); without points the controller holds its speed and reports
@@ -279,6 +281,10 @@ impl IcrScan {
                 for (j, (p, n)) in self.points.iter().zip(&self.normals).enumerate() {
                     let pr = r_rot * p.coords + r_tr;
                     let pl = m_rot * pr + m_tr;
+                    if !pl.iter().all(|v| v.is_finite()) {
+                        // A finite point so far out that its transform overflows.
+                        continue;
+                    }
                     let (d, g) = self.sdf(&pl);
                     let (w, dw) = self.probit.inverse_noise(d, 1.0);
                     if w <= 1e-12 && dw.abs() <= 1e-12 {
@@ -313,7 +319,8 @@ impl IcrScan {
     }
 
     /// Rolls the accelerations out, projecting them onto the limits: |a| ≤ u_max, then the
-    /// speed clamped along the way (and a adjusted to match). Writes θ₀..θ_N.
+    /// speed clamped along the way (and a adjusted to match, within ±u_max again: the
+    /// division can round past it). Writes θ₀..θ_N. `omega0` must be within the limits.
     fn project_and_roll(&self, omega0: f64, theta0: f64, a: &mut [f64], theta: &mut [f64]) {
         let (dt, lim) = (self.config.dt, &self.config.limits);
         theta[0] = theta0;
@@ -321,7 +328,7 @@ impl IcrScan {
         for (k, ak) in a.iter_mut().enumerate() {
             let u = lim.saturate_acceleration(*ak);
             let w_next = lim.saturate_speed(w + u * dt);
-            *ak = (w_next - w) / dt;
+            *ak = lim.saturate_acceleration((w_next - w) / dt);
             // eq. (12): the angle advances with the new speed.
             theta[k + 1] = theta[k] + w_next * dt;
             w = w_next;
@@ -367,6 +374,10 @@ impl ScanController for IcrScan {
                 status: ScanStatus::Fallback,
             });
         }
+        // A speed outside the limits (a motor still spinning up, or measured): the plan
+        // starts from the nearest limit, as FU-MPC's does, so every command stays within
+        // ±u_max.
+        let omega0 = self.config.limits.saturate_speed(omega0);
         // Warm start: the previous plan shifted by one step.
         let mut a = vec![0.0; n];
         a[..n - 1].copy_from_slice(&self.plan[1..]);
@@ -507,10 +518,17 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(8))]
 
-        /// Commands and the whole plan stay within the motor limits.
+        /// Commands and the whole plan stay within the motor limits, exactly, whatever the
+        /// step and also from a speed outside the limits (planned from the nearest limit).
         #[test]
-        fn respects_motor_limits(theta in -10.0..10.0f64, omega in -3.1..3.1f64, yaw in -3.0..3.0f64) {
+        fn respects_motor_limits(
+            theta in -10.0..10.0f64,
+            omega in -10.0..10.0f64,
+            yaw in -3.0..3.0f64,
+            dt in prop::sample::select(vec![0.1, 0.013, 1e-3]),
+        ) {
             let mut c = controller_with(120, 5);
+            c.config.dt = dt;
             let n = c.config.horizon;
             let reference: Vec<Isometry3<f64>> = (0..=n)
                 .map(|k| Isometry3::new(Vector3::new(0.1 * k as f64, 0.0, 0.0), Vector3::new(0.0, 0.0, yaw)))
@@ -519,15 +537,39 @@ mod tests {
             for _ in 0..2 {
                 let cmd = c.command(&input).unwrap();
                 let lim = c.config.limits;
-                prop_assert!(cmd.acceleration.abs() <= lim.u_max() + 1e-9);
-                let mut w = omega;
+                prop_assert!(cmd.acceleration.abs() <= lim.u_max());
+                let mut w = lim.saturate_speed(omega);
                 for a in &c.plan {
-                    prop_assert!(a.abs() <= lim.u_max() + 1e-9);
+                    prop_assert!(a.abs() <= lim.u_max());
                     w += a * c.config.dt;
                     prop_assert!(w >= lim.omega_min() - 1e-9 && w <= lim.omega_max() + 1e-9);
                 }
             }
         }
+    }
+
+    /// A finite point so far out that its transform overflows is left out of the objective
+    /// instead of making every later update fail.
+    #[test]
+    fn a_point_whose_transform_overflows_is_left_out() {
+        let mut c = controller();
+        let n = c.config.horizon;
+        let reference = vec![Isometry3::identity(); n + 1];
+        let input = ScanInput {
+            motor: MotorState::new(0.3, 1.0),
+            reference: &reference,
+            targets: &[],
+            fisher: None,
+        };
+        let want = c.command(&input).unwrap();
+        // First, so the even subsample keeps it.
+        let mut cloud = vec![Point3::new(f64::MAX, f64::MAX, 0.0)];
+        cloud.extend(scene());
+        let mut d = controller();
+        d.set_cloud(&cloud);
+        let got = d.command(&input).unwrap();
+        assert!(got.acceleration.is_finite());
+        assert!((got.acceleration - want.acceleration).abs() < 1e-6);
     }
 
     #[test]
