@@ -44,7 +44,8 @@ pub fn wrap_to_two_pi(a: f64) -> f64 {
     if w >= TAU { 0.0 } else { w }
 }
 
-/// The signed shortest rotation from `from` to `to`, in (−π, π].
+/// The signed shortest rotation from `from` to `to`, in (−π, π] (NaN for a non-finite
+/// angle).
 ///
 /// # Example
 /// ```
@@ -53,7 +54,12 @@ pub fn wrap_to_two_pi(a: f64) -> f64 {
 /// ```
 #[inline]
 pub fn difference(from: f64, to: f64) -> f64 {
-    wrap_to_pi(to - from)
+    let d = to - from;
+    if d.is_infinite() && from.is_finite() && to.is_finite() {
+        // Angles near ±f64::MAX whose difference overflows: each wrapped first.
+        return wrap_to_pi(wrap_to_pi(to) - wrap_to_pi(from));
+    }
+    wrap_to_pi(d)
 }
 
 /// The unwrapped angle closest to `previous` that equals `wrapped` modulo 2π.

@@ -372,7 +372,8 @@ impl Deskewer {
     ///   and for finite samples whose interpolation would not be finite: a gap between
     ///   consecutive sample times that is infinite or whose reciprocal is (below about
     ///   5.6e-309 s), a position step between poses or an angle step between motor angles
-    ///   that overflows, or a motor angle rate (wrapped step / gap) that overflows;
+    ///   that overflows, a motor angle rate (wrapped step / gap) that overflows, or poses
+    ///   whose composition with the target frame overflows (translations near `f64::MAX`);
     /// - [`KinematicsError::NotUnitRotation`] for a pose whose rotation is not of unit norm;
     /// - [`KinematicsError::LengthMismatch`] unless `out` is as long as `points`;
     /// - [`KinematicsError::TimeOutOfRange`] for a point or `BodyAt` time outside the samples.
@@ -426,6 +427,19 @@ impl Deskewer {
                 .iter()
                 .map(|span| FoldedSpan::new(span, &r_mb, &t_mb, &g_r, &g_t)),
         );
+        // Finite poses whose composition with the target frame overflows (translations near
+        // f64::MAX): an error, not NaN points.
+        let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
+        if !(finite(&g_t)
+            && self
+                .folded
+                .iter()
+                .all(|f| finite(&f.base) && finite(&f.vel) && finite(&f.c)))
+        {
+            return Err(KinematicsError::NonFinite {
+                what: "pose composed with the deskew target frame",
+            });
+        }
 
         // Three passes per chunk: locate each point's spans (branchy), evaluate all sines and
         // cosines (a branch-free loop that vectorises), then compose the transforms.

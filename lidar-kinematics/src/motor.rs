@@ -171,27 +171,27 @@ impl MotorModel {
     /// One step of the speed-commanded model, eq. (3): θ' = θ + sat(ω_cmd) Δt, ω' = sat(ω_cmd).
     ///
     /// # Errors
-    /// [`KinematicsError::NonFinite`] for a non-finite state or command,
-    /// [`KinematicsError::NonPositiveDt`] unless `dt > 0`.
+    /// [`KinematicsError::NonFinite`] for a non-finite state or command, or an angle that
+    /// overflows (θ near `f64::MAX`), [`KinematicsError::NonPositiveDt`] unless `dt > 0`.
     pub fn step_speed(&self, state: MotorState, omega_cmd: f64, dt: f64) -> Result<MotorState> {
         state.check()?;
         check_finite(omega_cmd, "speed command")?;
         check_dt(dt)?;
         let omega = self.limits.saturate_speed(omega_cmd);
         // eq. (3)
-        Ok(MotorState::new(state.theta + omega * dt, omega))
+        finite_angle(MotorState::new(state.theta + omega * dt, omega))
     }
 
     /// One step of the acceleration-commanded model, eqs. (11)–(12), after clipping `u` to ±u_max.
     ///
     /// # Errors
-    /// [`KinematicsError::NonFinite`] for a non-finite state or command,
-    /// [`KinematicsError::NonPositiveDt`] unless `dt > 0`.
+    /// [`KinematicsError::NonFinite`] for a non-finite state or command, or an angle that
+    /// overflows (θ near `f64::MAX`), [`KinematicsError::NonPositiveDt`] unless `dt > 0`.
     pub fn step(&self, state: MotorState, u: f64, dt: f64) -> Result<MotorState> {
         state.check()?;
         check_finite(u, "acceleration command")?;
         check_dt(dt)?;
-        Ok(self.step_unchecked(state, u, dt))
+        finite_angle(self.step_unchecked(state, u, dt))
     }
 
     #[inline]
@@ -229,6 +229,22 @@ impl MotorModel {
                 what: "acceleration command",
             });
         }
+        // |θ_N| ≤ |θ₀| + N Δt max|ω|: when that bound overflows, a dry run first finds out
+        // whether θ does, so an error leaves `out` unchanged.
+        let fastest = self
+            .limits
+            .omega_min()
+            .abs()
+            .max(self.limits.omega_max().abs());
+        // Control counts are far below 2^53.
+        #[allow(clippy::cast_precision_loss)]
+        let bound = initial.theta.abs() + controls.len() as f64 * dt * fastest;
+        if !bound.is_finite() {
+            let mut state = initial;
+            for &u in controls {
+                state = finite_angle(self.step_unchecked(state, u, dt))?;
+            }
+        }
         out[0] = initial;
         for (i, &u) in controls.iter().enumerate() {
             out[i + 1] = self.step_unchecked(out[i], u, dt);
@@ -249,6 +265,17 @@ impl MotorModel {
         let mut out = vec![MotorState::default(); controls.len() + 1];
         self.rollout_into(initial, controls, dt, &mut out)?;
         Ok(out)
+    }
+}
+
+/// `state`, or [`KinematicsError::NonFinite`] when its angle overflowed.
+fn finite_angle(state: MotorState) -> Result<MotorState> {
+    if state.theta.is_finite() {
+        Ok(state)
+    } else {
+        Err(KinematicsError::NonFinite {
+            what: "motor angle after the step",
+        })
     }
 }
 

@@ -219,7 +219,13 @@ impl FieldOfView {
     /// Whether a direction (any non-zero length) lies inside the field. The zero vector does not.
     #[inline]
     pub fn contains(&self, dir: &Vector3<f64>) -> bool {
-        self.contains_with_norm(dir, dir.norm())
+        let n = dir.norm();
+        if n > 0.0 && n.is_finite() {
+            return self.contains_with_norm(dir, n);
+        }
+        // A length whose square under- or overflows: the field is a set of directions, so
+        // the direction scaled to its largest component answers the same.
+        rescaled(dir).is_some_and(|d| self.contains_with_norm(&d, d.norm()))
     }
 
     /// [`FieldOfView::contains`] for a direction whose norm `n` is known.
@@ -384,9 +390,10 @@ impl NonRepetitivePattern {
     /// Validates and builds a pattern.
     ///
     /// `points_per_frame` in 1..=[`MAX_POINTS_PER_FRAME`] (a collected frame costs 32 bytes a
-    /// beam), `lines` ≥ 1, `frame_period` > 0 \[s\], −π/2 ≤ `elevation_min` <
-    /// `elevation_max` ≤ π/2 \[rad\], `azimuth_turns_per_frame` and `elevation_cycles_per_frame`
-    /// finite and > 0.
+    /// beam), `lines` ≥ 1, `frame_period` > 0 \[s\] with `frame_period × points_per_frame`
+    /// finite (so every beam's time offset is), −π/2 ≤ `elevation_min` < `elevation_max` ≤
+    /// π/2 \[rad\], `azimuth_turns_per_frame` and `elevation_cycles_per_frame` in (0, 1e6]
+    /// (so their phases stay finite over any number of frames).
     ///
     /// # Errors
     /// [`KinematicsError::InvalidParameter`], [`KinematicsError::NonFinite`] or
@@ -413,6 +420,14 @@ impl NonRepetitivePattern {
             ));
         }
         check_dt(frame_period)?;
+        // At most 2^28 beams, so the count is exact.
+        #[allow(clippy::cast_precision_loss)]
+        if !(frame_period * points_per_frame as f64).is_finite() {
+            return Err(invalid(
+                "non-repetitive pattern",
+                "frame period times beams per frame overflows",
+            ));
+        }
         FieldOfView::band(elevation_min, elevation_max)?;
         if elevation_min == elevation_max {
             return Err(invalid("non-repetitive pattern", "elevation band is empty"));
@@ -424,6 +439,9 @@ impl NonRepetitivePattern {
             check_finite(v, what)?;
             if v <= 0.0 {
                 return Err(invalid(what, "must be positive"));
+            }
+            if v > 1e6 {
+                return Err(invalid(what, "must be at most 1e6"));
             }
         }
         Ok(Self {
@@ -719,7 +737,14 @@ impl LidarSensor {
     #[inline]
     pub fn sees_in_lidar_frame(&self, p: &Point3<f64>) -> bool {
         let n = p.coords.norm();
-        self.range.contains(n) && self.fov.contains_with_norm(&p.coords, n)
+        if n > 0.0 && n.is_finite() {
+            return self.range.contains(n) && self.fov.contains_with_norm(&p.coords, n);
+        }
+        // A distance whose square under- or overflows (or the origin, or a non-finite point).
+        rescaled(&p.coords).is_some_and(|d| {
+            let m = d.norm();
+            self.range.contains(p.coords.amax() * m) && self.fov.contains_with_norm(&d, m)
+        })
     }
 
     /// Whether the LiDAR, at motor angle θ \[rad\] on a body at `body_pose`, can see a world point
@@ -785,6 +810,12 @@ impl VisibilityGate<'_> {
         let p = self.rotation * world_point.coords + self.translation;
         self.sensor.sees_in_lidar_frame(&Point3::from(p))
     }
+}
+
+/// `v` divided by its largest component's magnitude, for a finite non-zero `v`.
+fn rescaled(v: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let s = v.amax();
+    (s > 0.0 && s.is_finite()).then(|| v / s)
 }
 
 #[cfg(test)]

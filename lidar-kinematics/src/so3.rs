@@ -72,7 +72,12 @@ pub fn vee(m: &Matrix3<f64>) -> Vector3<f64> {
 /// assert!((q * Vector3::x() - Vector3::y()).norm() < 1e-15);
 /// ```
 pub fn exp(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
-    let theta = phi.norm();
+    let mut theta = phi.norm();
+    let scale = phi.amax();
+    if theta.is_infinite() && scale.is_finite() {
+        // ‖φ‖ above about 1.3e154: its square overflows, the norm itself does not.
+        theta = scale * (phi / scale).norm();
+    }
     let half = 0.5 * theta;
     // sin(θ/2)/θ, with its series for small θ.
     let k = if theta < 1e-4 {
@@ -131,7 +136,8 @@ pub fn left_jacobian(phi: &Vector3<f64>) -> Matrix3<f64> {
 /// The inverse left Jacobian J_l⁻¹(φ) = I − φ̂/2 + d(θ) φ̂², d = 1/θ² − cot(θ/2)/(2θ).
 ///
 /// J_l is invertible for θ < 2π; rotation vectors from [`log`] have θ ≤ π.
-/// For θ ≥ 2π the result is not finite.
+/// It is singular at θ = 2π, 4π, …: there the result is not finite or, rounded, finite and
+/// meaningless; use it only for θ < 2π.
 ///
 /// # Example
 /// ```

@@ -194,8 +194,9 @@ impl<const S: usize, const D: usize> Minco<S, D> {
     ///
     /// # Errors
     /// [`MincoError::LengthMismatch`], [`MincoError::NonFinite`], [`MincoError::BadDuration`]
-    /// for bad input; [`MincoError::Singular`] if the system cannot be factorised. On error the
-    /// problem is left unsolved.
+    /// for bad input (a duration not positive and finite, or so large or small that one of
+    /// T^±1..T^±2S over- or underflows); [`MincoError::Singular`] if the system cannot be
+    /// factorised. On error the problem is left unsolved.
     pub fn solve(
         &mut self,
         head: &[[f64; D]; S],
@@ -211,7 +212,15 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         check_finite_rows(tail, "tail state")?;
         check_finite_rows(waypoints, "waypoints")?;
         for (index, &value) in durations.iter().enumerate() {
-            if !(value > 0.0 && value.is_finite()) {
+            // T^1..T^(2S−1) and T^−1..T^−2S, the powers the coefficients, the effort and
+            // its gradients use, must neither overflow nor underflow (for S = 4 about
+            // 1e-38 s < T < 1e44 s): an effort of 0 · ∞ would be NaN.
+            let usable = |v: &f64| v.is_finite() && *v > 0.0;
+            if !(value > 0.0
+                && value.is_finite()
+                && powers(value)[..2 * S].iter().all(usable)
+                && inverse_powers(value)[..=2 * S].iter().all(usable))
+            {
                 return Err(MincoError::BadDuration { index, value });
             }
         }
@@ -545,6 +554,8 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         &self.coeffs[Self::N * i..Self::N * (i + 1)]
     }
     /// The control effort J = Σ_i ∫₀^{T_i} ‖p_i^(S)(t)‖² dt, in closed form (0 before a solve).
+    /// Not finite when it overflows: states so large (about 1e150 and beyond) that the squared
+    /// coefficients do.
     pub fn energy(&self) -> f64 {
         if !self.solved {
             return 0.0;

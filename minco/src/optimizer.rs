@@ -307,7 +307,8 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
     /// `path.len() + 1` pieces.
     ///
     /// # Errors
-    /// [`MincoError::InvalidConfig`] for bad settings, [`MincoError::NonFinite`] for non-finite
+    /// [`MincoError::InvalidConfig`] for bad settings or a path of `usize::MAX` points,
+    /// [`MincoError::NonFinite`] for non-finite
     /// input, [`MincoError::Infeasible`] if the head or tail speed or acceleration exceeds the
     /// limits, and the errors of [`Minco::new`].
     pub fn new(
@@ -318,7 +319,12 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
     ) -> Result<Self> {
         config.validate()?;
         // Checks the order and size before anything indexes the boundary states.
-        let m = path.len() + 1;
+        let Some(m) = path.len().checked_add(1) else {
+            return Err(MincoError::InvalidConfig {
+                what: "path",
+                reason: "too many waypoints",
+            });
+        };
         let minco = Minco::new(m)?;
         let finite = |rows: &[[f64; D]]| rows.iter().flatten().all(|v| v.is_finite());
         if !finite(&head) || !finite(&tail) || !finite(path) {

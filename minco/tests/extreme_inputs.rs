@@ -1,0 +1,47 @@
+//! Inputs at the edges of the floats and counts: typed errors, never NaN passed on as a
+//! number or a panic.
+#![allow(clippy::unwrap_used)]
+
+use minco::{MincoError, MinimumJerk, MinimumSnap, Optimizer, OptimizerConfig, Trajectory};
+
+/// Durations whose powers over- or underflow are bad durations, not an effort of NaN.
+#[test]
+fn durations_whose_powers_overflow_are_refused() {
+    let mut jerk = MinimumJerk::<1>::new(1).unwrap();
+    let (head, tail) = ([[0.0], [0.0], [0.0]], [[1.0], [0.0], [0.0]]);
+    for t in [1e62, 1e70, 1e-60] {
+        let got = jerk.solve(&head, &tail, &[], &[t]);
+        assert!(matches!(got, Err(MincoError::BadDuration { .. })), "{t}");
+    }
+    jerk.solve(&head, &tail, &[], &[1e30]).unwrap();
+    assert!(jerk.energy().is_finite());
+    let mut snap = MinimumSnap::<1>::new(1).unwrap();
+    let (head, tail) = ([[0.0]; 4], [[1.0], [0.0], [0.0], [0.0]]);
+    let got = snap.solve(&head, &tail, &[], &[1e-40]);
+    assert!(matches!(got, Err(MincoError::BadDuration { .. })));
+    snap.solve(&head, &tail, &[], &[1e-20]).unwrap();
+    assert!(snap.energy().is_finite());
+}
+
+/// A sample step that would give more than `MAX_SAMPLES` samples is refused, counting the
+/// grid's first sample and the end time.
+#[test]
+fn sampling_stays_within_its_limit() {
+    let mut jerk = MinimumJerk::<1>::new(1).unwrap();
+    jerk.solve(&[[0.0], [0.0], [0.0]], &[[1.0], [0.0], [0.0]], &[], &[1.0])
+        .unwrap();
+    let traj: Trajectory<1> = jerk.trajectory().unwrap();
+    let max = Trajectory::<1>::MAX_SAMPLES as f64;
+    for dt in [1.0 / max, 1.0 / (max - 1.0)] {
+        assert!(traj.sample(dt).is_err(), "{dt}");
+    }
+    assert_eq!(traj.sample(0.25).unwrap().len(), 5);
+}
+
+/// A path of `usize::MAX` (zero-sized) points is a configuration error, not an overflow.
+#[test]
+fn a_path_too_long_to_count_is_an_error() {
+    let path = vec![[0.0f64; 0]; usize::MAX];
+    let got = Optimizer::<3, 0>::new(OptimizerConfig::default(), [[]; 3], [[]; 3], &path);
+    assert!(matches!(got, Err(MincoError::InvalidConfig { .. })));
+}
