@@ -512,7 +512,15 @@ impl VoxelMap {
             let len = d.norm();
             let (mut end, mut hit) = (*p, true);
             if len > range {
-                end = origin + d * (range / len);
+                end = if len.is_finite() {
+                    origin + d * (range / len)
+                } else {
+                    // A point so far out (about 1e154 m and beyond) that its squared distance,
+                    // or the offset itself, overflows: the same direction, scaled first.
+                    let s = p.coords.amax().max(origin.coords.amax());
+                    let u = p.coords / s - origin.coords / s;
+                    origin + u * (range / u.norm())
+                };
                 hit = false;
                 out.truncated += 1;
             }

@@ -213,3 +213,28 @@ fn bounds_too_large_for_the_block_directory_are_an_error() {
     let scene = VoxelMap::new(b(315.0, 53.5, 27.0), cfg(0.2)).unwrap();
     assert!(scene.memory_bytes() < 1 << 20);
 }
+
+/// A point so far out that its squared distance overflows still clears free space up to
+/// the range along its direction, as a nearer one beyond the range does.
+#[test]
+fn far_points_clear_up_to_the_range() {
+    let origin = Point3::new(1.0, 5.0, 1.5);
+    let mut near = small_map();
+    let want = near
+        .insert_frame(&origin, &[Point3::new(1e150, 5.0, 1.5)])
+        .unwrap();
+    assert!(want.free_cells > 1);
+    for x in [1e160, 1e200, 1e300, f64::MAX] {
+        let mut far = small_map();
+        let got = far
+            .insert_frame(&origin, &[Point3::new(x, 5.0, 1.5)])
+            .unwrap();
+        assert_eq!(got.free_cells, want.free_cells, "{x}");
+        assert_eq!(got.truncated, 1);
+        assert_eq!(
+            far.state(&Point3::new(5.0, 5.0, 1.5)),
+            CellState::Free,
+            "{x}"
+        );
+    }
+}

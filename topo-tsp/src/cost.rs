@@ -66,7 +66,8 @@ impl CostConfig {
 }
 
 /// The transition cost of eq. (7) along a path of points \[s\]:
-/// d = Σ_l (‖x_{l+1} − x_l‖ + 0.5 |z_{l+1} − z_l|) / (v_max / 2).
+/// d = Σ_l (‖x_{l+1} − x_l‖ + 0.5 |z_{l+1} − z_l|) / (v_max / 2); ∞ for a `v_max` that is not
+/// positive (NaN included).
 ///
 /// # Example
 /// ```
@@ -86,6 +87,10 @@ pub fn transition_cost(path: &[[f64; 3]], v_max: f64) -> f64 {
             len + 0.5 * (b[2] - a[2]).abs()
         })
         .sum();
+    if v_max.is_nan() || v_max <= 0.0 {
+        // No speed covers any distance.
+        return f64::INFINITY;
+    }
     sum / (0.5 * v_max)
 }
 
@@ -106,8 +111,8 @@ pub fn heading_cost(
     min_speed: f64,
 ) -> f64 {
     let d = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
-    let speed = (velocity[0].powi(2) + velocity[1].powi(2) + velocity[2].powi(2)).sqrt();
-    let len = (d[0].powi(2) + d[1].powi(2) + d[2].powi(2)).sqrt();
+    let speed = norm(velocity);
+    let len = norm(d);
     if !(speed >= min_speed && speed > 0.0 && len > 0.0) {
         return 0.0;
     }
@@ -117,11 +122,45 @@ pub fn heading_cost(
         velocity[0] * d[1] - velocity[1] * d[0],
     ];
     let dot = velocity[0] * d[0] + velocity[1] * d[1] + velocity[2] * d[2];
-    let theta = (cross[0].powi(2) + cross[1].powi(2) + cross[2].powi(2))
-        .sqrt()
-        .atan2(dot);
+    let sine = (cross[0].powi(2) + cross[1].powi(2) + cross[2].powi(2)).sqrt();
+    let safe = |x: f64| (1e-70..=1e70).contains(&x);
+    let theta = if safe(speed) && safe(len) {
+        sine.atan2(dot)
+    } else {
+        // Products that may over- or underflow: the angle does not depend on the vectors'
+        // lengths, so of both scaled to unit size.
+        let unit = |v: [f64; 3]| v.map(|x| x / largest(v));
+        let (v, e) = (unit(velocity), unit(d));
+        let c = [
+            v[1] * e[2] - v[2] * e[1],
+            v[2] * e[0] - v[0] * e[2],
+            v[0] * e[1] - v[1] * e[0],
+        ];
+        (c[0].powi(2) + c[1].powi(2) + c[2].powi(2))
+            .sqrt()
+            .atan2(v[0] * e[0] + v[1] * e[1] + v[2] * e[2])
+    };
     // eq. (8)
     weight * theta
+}
+
+/// The largest magnitude of a vector's components.
+fn largest(v: [f64; 3]) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+/// ‖v‖, also where the squares over- or underflow (scaled to the largest component then).
+fn norm(v: [f64; 3]) -> f64 {
+    let n = (v[0].powi(2) + v[1].powi(2) + v[2].powi(2)).sqrt();
+    if n > 0.0 && n.is_finite() {
+        return n;
+    }
+    let m = largest(v);
+    if !(m > 0.0 && m.is_finite()) {
+        return n;
+    }
+    let u = v.map(|x| x / m);
+    m * (u[0].powi(2) + u[1].powi(2) + u[2].powi(2)).sqrt()
 }
 
 /// The (M + 1) × (M + 1) cost matrix of the open tour (9): node 0 is the odometry node `odom`,
@@ -132,7 +171,9 @@ pub fn heading_cost(
 /// # Errors
 /// [`TspError::InvalidConfig`] for bad settings, [`TspError::NonFinite`] for a non-finite
 /// velocity, [`TspError::NoSuchNode`] for unknown nodes, [`TspError::TooLarge`] for more than
-/// [`CostMatrix::MAX_LEN`] nodes in all.
+/// [`CostMatrix::MAX_LEN`] nodes in all, and [`TspError::BadCost`] when settings that pass
+/// [`CostConfig::validate`] still make a cost overflow (a heading weight near `f64::MAX`, a
+/// `v_max` of a few subnormals).
 ///
 /// # Example
 /// ```

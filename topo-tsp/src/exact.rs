@@ -21,7 +21,8 @@ pub const BRUTE_FORCE_MAX: usize = 9;
 
 /// The optimal closed tour by Held–Karp dynamic programming, O(2ⁿ n²), for n ≤ 13.
 ///
-/// Ties are broken toward smaller node indices, so the result is deterministic.
+/// Ties are broken toward smaller node indices, so the result is deterministic. When every
+/// tour's length overflows (costs near `f64::MAX`), the order 0, 1, …, n − 1 with length ∞.
 ///
 /// # Errors
 /// [`TspError::TooLarge`] for n > 13.
@@ -85,6 +86,15 @@ pub fn held_karp(m: &CostMatrix) -> Result<Tour> {
             best = total;
             last = j;
         }
+    }
+    if !best.is_finite() {
+        // Every tour's length overflows (costs near f64::MAX): all are equally long, and the
+        // search kept no parents; the first order, as the brute force would give.
+        let order: Vec<usize> = (0..n).collect();
+        return Ok(Tour {
+            length: m.closed_length(&order),
+            order,
+        });
     }
     let mut order = Vec::with_capacity(n);
     let (mut mask, mut j) = (full, last);

@@ -208,10 +208,22 @@ impl TopoGraph {
         let near = self.index.within(&self.positions, &p, radius);
         self.positions.push(p);
         self.adjacency.push(Vec::new());
+        // A radius whose square overflows (above about 1.3e154) lets the squared-distance
+        // test pass any pair: such pairs are checked by their distance itself.
+        let huge = (radius * radius).is_infinite();
         for other in near {
             let q = self.positions[other];
+            let mut len = dist(&p, &q);
+            if len.is_infinite() {
+                // The squares overflowed, perhaps not the distance itself.
+                let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                let m = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                len = m * dist(&d.map(|x| x / m), &[0.0; 3]);
+            }
+            if !len.is_finite() || huge && len > radius {
+                continue;
+            }
             if free.segment_free(&p, &q) {
-                let len = dist(&p, &q);
                 self.adjacency[id].push((other, len));
                 self.adjacency[other].push((id, len));
             }
