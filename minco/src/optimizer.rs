@@ -307,7 +307,8 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
     /// `path.len() + 1` pieces.
     ///
     /// # Errors
-    /// [`MincoError::InvalidConfig`] for bad settings or a path of `usize::MAX` points,
+    /// [`MincoError::InvalidConfig`] for bad settings, a path of `usize::MAX` points or
+    /// segments so long for `v_max` that their durations overflow,
     /// [`MincoError::NonFinite`] for non-finite
     /// input, [`MincoError::Infeasible`] if the head or tail speed or acceleration exceeds the
     /// limits, and the errors of [`Minco::new`].
@@ -346,6 +347,21 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
         polyline.push(head[0]);
         polyline.extend_from_slice(path);
         polyline.push(tail[0]);
+        // Segments so long for v_max (1e300 m, or a v_max of 1e-308 m/s) that their first
+        // durations overflow: named here rather than as a bad decision vector later.
+        for w in polyline.windows(2) {
+            let mut d = w[1];
+            for (x, a) in d.iter_mut().zip(&w[0]) {
+                *x -= a;
+            }
+            let t = norm2(&d).sqrt() / (0.5 * config.v_max);
+            if !t_to_tau(t.max(0.1)).is_finite() {
+                return Err(MincoError::InvalidConfig {
+                    what: "path",
+                    reason: "a segment's duration at v_max overflows",
+                });
+            }
+        }
         let n = 2 * S * m;
         Ok(Self {
             config,

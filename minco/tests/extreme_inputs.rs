@@ -45,3 +45,27 @@ fn a_path_too_long_to_count_is_an_error() {
     let got = Optimizer::<3, 0>::new(OptimizerConfig::default(), [[]; 3], [[]; 3], &path);
     assert!(matches!(got, Err(MincoError::InvalidConfig { .. })));
 }
+
+/// A path whose segments' first durations overflow is named as such up front, not later as a
+/// bad decision vector.
+#[test]
+fn segments_too_long_for_the_speed_limit_are_refused() {
+    let rest = [[0.0; 3]; 3];
+    let mut tail = rest;
+    tail[0] = [1.0, 0.0, 0.0];
+    let far = [[1e300, 0.0, 0.0]];
+    let got = Optimizer::<3, 3>::new(OptimizerConfig::default(), rest, tail, &far);
+    assert!(
+        matches!(got, Err(MincoError::InvalidConfig { .. })),
+        "{got:?}"
+    );
+    let slow = OptimizerConfig::default().with_limits(1e-308, 2.0);
+    let got = Optimizer::<3, 3>::new(slow, rest, tail, &[[0.5, 0.0, 0.0]]);
+    assert!(
+        matches!(got, Err(MincoError::InvalidConfig { .. })),
+        "{got:?}"
+    );
+    assert!(
+        Optimizer::<3, 3>::new(OptimizerConfig::default(), rest, tail, &[[0.5, 0.0, 0.0]]).is_ok()
+    );
+}
