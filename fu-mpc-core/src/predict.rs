@@ -1,9 +1,8 @@
 //! Predictive scanning, equations (10)–(14).
 
-use lidar_kinematics::{KinematicChain, MotorModel, MotorState};
+use lidar_kinematics::{KinematicChain, KinematicsError, MotorModel, MotorState};
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 
-use crate::error::invalid;
 use crate::{CoreError, Result};
 
 /// One predicted scanning state (p_i, θ_i, ω_i, d_i^W).
@@ -53,9 +52,9 @@ impl Default for PredictedStep {
 ///
 /// # Errors
 /// [`CoreError::LengthMismatch`] unless `reference.len() == out.len() == controls.len() + 1`;
-/// [`CoreError::NonFinite`] for a non-finite initial state or pose translation,
-/// [`CoreError::InvalidConfig`] for Δt not positive and finite, and kinematic errors for a
-/// non-finite command or a bad attitude.
+/// [`CoreError::NonFinite`] for a non-finite initial state or pose translation, and kinematic
+/// errors for a Δt that is not positive and finite (also with no controls), a non-finite
+/// command or a bad attitude.
 pub fn predict_into(
     chain: &KinematicChain,
     motor: &MotorModel,
@@ -83,8 +82,12 @@ pub fn predict_into(
             what: "motor state",
         });
     }
-    if !(dt > 0.0 && dt.is_finite()) {
-        return invalid("dt", dt, "must be positive and finite [s]");
+    // The errors the motor model gives for a bad step, also with no step to take.
+    if !dt.is_finite() {
+        return Err(KinematicsError::NonFinite { what: "time step" }.into());
+    }
+    if dt <= 0.0 {
+        return Err(KinematicsError::NonPositiveDt(dt).into());
     }
     let mut state = initial;
     for i in 0..n {

@@ -214,7 +214,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         for (index, &value) in durations.iter().enumerate() {
             // T^1..T^(2S−1) and T^−1..T^−2S, the powers the coefficients, the effort and
             // its gradients use, must neither overflow nor underflow (for S = 4 about
-            // 1e-38 s < T < 1e44 s): an effort of 0 · ∞ would be NaN.
+            // 1e-38 s < T < 1e38 s): a power of ∞ times one of 0 would make the effort NaN.
             let usable = |v: &f64| v.is_finite() && *v > 0.0;
             if !(value > 0.0
                 && value.is_finite()
@@ -554,8 +554,9 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         &self.coeffs[Self::N * i..Self::N * (i + 1)]
     }
     /// The control effort J = Σ_i ∫₀^{T_i} ‖p_i^(S)(t)‖² dt, in closed form (0 before a solve).
-    /// Not finite when it overflows: states so large (about 1e150 and beyond) that the squared
-    /// coefficients do.
+    /// ∞ when it overflows: the squared coefficients of states so large (about 1e150 and
+    /// beyond), or of durations so short (for S = 4 below about 1e-23 s with unit states),
+    /// that they do.
     pub fn energy(&self) -> f64 {
         if !self.solved {
             return 0.0;
@@ -577,13 +578,15 @@ impl<const S: usize, const D: usize> Minco<S, D> {
                 }
             }
         }
-        total
+        // An overflow inside (∞ − ∞ or ∞ · 0 among the products) reads as NaN: it is ∞.
+        if total.is_nan() { f64::INFINITY } else { total }
     }
 
     /// Adds the partial derivatives of J to `grad_c` (∂J/∂c, one row per coefficient row) and
     /// `grad_t` (the explicit ∂J/∂T_i = ‖p_i^(S)(T_i)‖²), and returns J.
     ///
-    /// J is quadratic in c, J = ½ ⟨c, ∂J/∂c⟩, so it comes for free with the partials.
+    /// J is quadratic in c, J = ½ ⟨c, ∂J/∂c⟩, so it comes for free with the partials. Where
+    /// [`Minco::energy`] overflows, J and the partials are not finite.
     ///
     /// # Errors
     /// [`MincoError::NotSolved`] before a solve, [`MincoError::LengthMismatch`] for wrong lengths.

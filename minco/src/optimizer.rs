@@ -308,7 +308,9 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
     ///
     /// # Errors
     /// [`MincoError::InvalidConfig`] for bad settings, a path of `usize::MAX` points or
-    /// segments so long for `v_max` that their durations overflow,
+    /// segments so long for `v_max` that their first durations' parameters τ overflow (a
+    /// duration that is finite but outside [`Minco::solve`]'s range fails there, as
+    /// [`MincoError::BadDuration`]),
     /// [`MincoError::NonFinite`] for non-finite
     /// input, [`MincoError::Infeasible`] if the head or tail speed or acceleration exceeds the
     /// limits, and the errors of [`Minco::new`].

@@ -147,8 +147,8 @@ impl<const D: usize> Trajectory<D> {
         let total = self.duration();
         let steps = total / dt;
         // floor(steps) + 1 samples on the grid and possibly the end time: at most
-        // MAX_SAMPLES when steps ≤ MAX_SAMPLES − 2.
-        if !(dt > 0.0 && dt.is_finite() && steps <= (Self::MAX_SAMPLES - 2) as f64) {
+        // MAX_SAMPLES when steps < MAX_SAMPLES − 1.
+        if !(dt > 0.0 && dt.is_finite() && steps < (Self::MAX_SAMPLES - 1) as f64) {
             return Err(MincoError::InvalidConfig {
                 what: "sample step",
                 reason: "must be positive, finite, and give at most MAX_SAMPLES samples",

@@ -69,3 +69,17 @@ fn segments_too_long_for_the_speed_limit_are_refused() {
         Optimizer::<3, 3>::new(OptimizerConfig::default(), rest, tail, &[[0.5, 0.0, 0.0]]).is_ok()
     );
 }
+
+/// Durations short enough that the squared coefficients overflow, though every power of T is
+/// in range: the effort reads ∞, not NaN.
+#[test]
+fn an_effort_that_overflows_is_infinite() {
+    let mut snap = MinimumSnap::<1>::new(1).unwrap();
+    let (head, tail) = ([[0.0]; 4], [[1.0], [0.0], [0.0], [0.0]]);
+    for t in [1e-30, 1e-24, 1e-23] {
+        snap.solve(&head, &tail, &[], &[t]).unwrap();
+        assert_eq!(snap.energy(), f64::INFINITY, "{t}");
+    }
+    snap.solve(&head, &tail, &[], &[1.0]).unwrap();
+    assert!(snap.energy().is_finite() && snap.energy() > 0.0);
+}

@@ -92,7 +92,8 @@ impl InformationMap {
     /// than [`InformationMap::MAX_DENSE_CELLS`] cells, a
     /// non-positive variance or length scale or a negative jitter;
     /// [`CoreError::NotPositiveDefinite`] if Σ₀ is singular in floating point (raise the
-    /// jitter).
+    /// jitter), [`CoreError::NonFinite`] if its inverse overflows (a variance near the
+    /// smallest floats).
     pub fn squared_exponential(
         cells: Vec<Point3<f64>>,
         variance: f64,
