@@ -105,7 +105,7 @@ fn check_finite_rows<const D: usize>(rows: &[[f64; D]], what: &'static str) -> R
 }
 
 #[inline(always)]
-fn sub<const D: usize>(a: &[f64; D], b: &[f64; D]) -> [f64; D] {
+pub(crate) fn sub<const D: usize>(a: &[f64; D], b: &[f64; D]) -> [f64; D] {
     core::array::from_fn(|d| a[d] - b[d])
 }
 

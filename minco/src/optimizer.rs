@@ -352,11 +352,7 @@ impl<const S: usize, const D: usize> Optimizer<S, D> {
         // Segments so long for v_max (1e300 m, or a v_max of 1e-308 m/s) that their first
         // durations overflow: named here rather than as a bad decision vector later.
         for w in polyline.windows(2) {
-            let mut d = w[1];
-            for (x, a) in d.iter_mut().zip(&w[0]) {
-                *x -= a;
-            }
-            let t = norm2(&d).sqrt() / (0.5 * config.v_max);
+            let t = norm2(&crate::minco::sub(&w[1], &w[0])).sqrt() / (0.5 * config.v_max);
             if !t_to_tau(t.max(0.1)).is_finite() {
                 return Err(MincoError::InvalidConfig {
                     what: "path",

@@ -116,32 +116,32 @@ pub fn heading_cost(
     if !(speed >= min_speed && speed > 0.0 && len > 0.0) {
         return 0.0;
     }
-    let cross = [
-        velocity[1] * d[2] - velocity[2] * d[1],
-        velocity[2] * d[0] - velocity[0] * d[2],
-        velocity[0] * d[1] - velocity[1] * d[0],
-    ];
-    let dot = velocity[0] * d[0] + velocity[1] * d[1] + velocity[2] * d[2];
-    let sine = (cross[0].powi(2) + cross[1].powi(2) + cross[2].powi(2)).sqrt();
-    let safe = |x: f64| (1e-70..=1e70).contains(&x);
-    let theta = if safe(speed) && safe(len) {
-        sine.atan2(dot)
+    let theta = if (1e-70..=1e70).contains(&speed) && (1e-70..=1e70).contains(&len) {
+        angle(velocity, d)
     } else {
         // Products that may over- or underflow: the angle does not depend on the vectors'
         // lengths, so of both scaled to unit size.
-        let unit = |v: [f64; 3]| v.map(|x| x / largest(v));
-        let (v, e) = (unit(velocity), unit(d));
-        let c = [
-            v[1] * e[2] - v[2] * e[1],
-            v[2] * e[0] - v[0] * e[2],
-            v[0] * e[1] - v[1] * e[0],
-        ];
-        (c[0].powi(2) + c[1].powi(2) + c[2].powi(2))
-            .sqrt()
-            .atan2(v[0] * e[0] + v[1] * e[1] + v[2] * e[2])
+        let unit = |v: [f64; 3]| {
+            let m = largest(v);
+            v.map(|x| x / m)
+        };
+        angle(unit(velocity), unit(d))
     };
     // eq. (8)
     weight * theta
+}
+
+/// The angle between `a` and `b`, atan2(‖a × b‖, a · b).
+fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let cross = [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ];
+    let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    (cross[0].powi(2) + cross[1].powi(2) + cross[2].powi(2))
+        .sqrt()
+        .atan2(dot)
 }
 
 /// The largest magnitude of a vector's components.
@@ -150,7 +150,7 @@ fn largest(v: [f64; 3]) -> f64 {
 }
 
 /// ‖v‖, also where the squares over- or underflow (scaled to the largest component then).
-fn norm(v: [f64; 3]) -> f64 {
+pub(crate) fn norm(v: [f64; 3]) -> f64 {
     let n = (v[0].powi(2) + v[1].powi(2) + v[2].powi(2)).sqrt();
     if n > 0.0 && n.is_finite() {
         return n;

@@ -216,9 +216,7 @@ impl TopoGraph {
             let mut len = dist(&p, &q);
             if len.is_infinite() {
                 // The squares overflowed, perhaps not the distance itself.
-                let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-                let m = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                len = m * dist(&d.map(|x| x / m), &[0.0; 3]);
+                len = crate::cost::norm([p[0] - q[0], p[1] - q[1], p[2] - q[2]]);
             }
             if !len.is_finite() || huge && len > radius {
                 continue;
