@@ -93,6 +93,19 @@ const STUCK_TIME: f64 = 30.0;
 /// whenever it swings from one end of its sway to the other.
 const STUCK_SPAN: f64 = 4.0;
 
+/// A UAV whose map has gained fewer than [`IDLE_GAIN`] known cells in this long while its
+/// positions fitted in a box of diagonal [`IDLE_SPAN`] is idle \[s\]: it first holds on to its
+/// target, and gives it up when idle again (see [`Headway::idle`]).
+const IDLE_TIME: f64 = 60.0;
+
+/// The diagonal of the idle box \[m\]: wider than [`STUCK_SPAN`], for a UAV turning back
+/// and forth between two targets a few metres apart.
+const IDLE_SPAN: f64 = 10.0;
+
+/// Known cells the map must gain in [`IDLE_TIME`] for the UAV not to be idle: 16 m³ of
+/// 0.2 m cells, while exploring the map gains thousands a second.
+const IDLE_GAIN: usize = 2_000;
+
 /// Largest spacing of the waypoints of a trajectory made again because the first one came
 /// too close to an obstacle \[m\] (see [`densify`]).
 const DENSE_SPACING: f64 = 1.0;
@@ -942,6 +955,8 @@ fn densify(path: &[[f64; 3]], spacing: f64) -> Vec<[f64; 3]> {
 struct Headway {
     /// The box of the positions since `since`: (least corner, greatest corner, since).
     span: Option<(Point3<f64>, Point3<f64>, f64)>,
+    /// The same for [`Headway::idle`], with the map's known cells at `since`.
+    idle: Option<(Point3<f64>, Point3<f64>, f64, usize)>,
 }
 
 impl Headway {
@@ -958,6 +973,30 @@ impl Headway {
         }
         self.span = Some((lo, hi, since));
         t - since > STUCK_TIME
+    }
+
+    /// Records the UAV at `here` at time `t` with a map of `known` cells and says whether it
+    /// is idle: its positions since the idle clock last started fit in a box of diagonal
+    /// [`IDLE_SPAN`], the map has gained fewer than [`IDLE_GAIN`] cells since, and more than
+    /// [`IDLE_TIME`] has passed. The clock starts again when either no longer holds, and when
+    /// it says idle.
+    fn idle(&mut self, here: &Point3<f64>, t: f64, known: usize) -> bool {
+        let start = (*here, *here, t, known);
+        let Some((lo, hi, since, known0)) = self.idle else {
+            self.idle = Some(start);
+            return false;
+        };
+        let (lo, hi) = (lo.inf(here), hi.sup(here));
+        if (hi - lo).norm() > IDLE_SPAN || known >= known0.saturating_add(IDLE_GAIN) {
+            self.idle = Some(start);
+            return false;
+        }
+        if t - since > IDLE_TIME {
+            self.idle = Some(start);
+            return true;
+        }
+        self.idle = Some((lo, hi, since, known0));
+        false
     }
 
     /// Starts the clock again from `here` at `t`.
@@ -1173,6 +1212,12 @@ struct Explorer<'a> {
     reference: Reference,
     /// The current target's viewpoint and the frontier centre it looks at.
     target: Option<(Point3<f64>, Point3<f64>)>,
+    /// The current target's frontier clusters.
+    target_members: Vec<frontier::ClusterId>,
+    /// Whether the UAV, idle, holds on to its target while any target shares one of its
+    /// clusters (the dynamic clusters regroup as the UAV moves, and their viewpoints and
+    /// centres with them).
+    holding: bool,
     /// Since when the plan has had no target, or none reachable.
     stalled_since: Option<f64>,
     /// Viewpoints flown to whose frontier stayed: targets there are not chosen again.
@@ -1244,7 +1289,12 @@ impl Explorer<'_> {
         // trajectory keeps being replaced (blocked, or swinging too close to a wall) before
         // the UAV gets anywhere, and choosing it again would hold the UAV there for the rest
         // of the run.
-        let stuck = self.headway.stuck(&here, t);
+        let mut stuck = self.headway.stuck(&here, t);
+        // Idle once: hold on to the target; idle again while holding: give it up.
+        if self.target.is_some() && self.headway.idle(&here, t, self.map.known_cells()) {
+            stuck |= self.holding;
+            self.holding = !self.holding;
+        }
         if self
             .trail
             .last()
@@ -1274,7 +1324,9 @@ impl Explorer<'_> {
             && !force
             && !self.reference.done(t)
             && targets.iter().any(|t| {
-                (t.viewpoint - vp).norm() < KEEP_RADIUS || (t.center - center).norm() < KEEP_RADIUS
+                (t.viewpoint - vp).norm() < KEEP_RADIUS
+                    || (t.center - center).norm() < KEEP_RADIUS
+                    || (self.holding && t.members.iter().any(|m| self.target_members.contains(m)))
             })
         {
             self.stalled_since = None;
@@ -1505,7 +1557,16 @@ impl Explorer<'_> {
         self.reference.traj = traj;
         self.reference.t0 = t;
         self.reference.hover = p;
+        if self.holding
+            && !target
+                .members
+                .iter()
+                .any(|m| self.target_members.contains(m))
+        {
+            self.holding = false;
+        }
         self.target = Some((target.viewpoint, target.center));
+        self.target_members.clone_from(&target.members);
         Ok(true)
     }
 
@@ -1677,6 +1738,8 @@ pub fn explore(
         exhausted: Vec::new(),
         arrival: None,
         headway: Headway::default(),
+        target_members: Vec::new(),
+        holding: false,
         last_targets: 0,
         region: (mission.min, mission.max),
         mission: mission_cache,
@@ -2729,6 +2792,40 @@ mod tests {
         assert!(!h.stuck(&away, 81.0));
         assert!(!h.stuck(&away, 81.0 + STUCK_TIME));
         assert!(h.stuck(&away, 81.5 + STUCK_TIME));
+    }
+
+    #[test]
+    fn a_uav_that_turns_back_and_forth_and_sees_nothing_new_is_idle() {
+        // Back and forth between two places 6 m apart (wider than the stuck box), the map
+        // gaining ten cells a second: idle once more than IDLE_TIME has passed, and again
+        // IDLE_TIME after that.
+        let (a, b) = (Point3::new(46.5, 5.5, 2.6), Point3::new(51.0, 3.0, 2.9));
+        let sway = |t: f64| a + (b - a) * (0.5 - 0.5 * (t * 0.15).cos());
+        let mut h = Headway::default();
+        let mut fired = Vec::new();
+        for i in 0..=300 {
+            let t = f64::from(i) * 0.5;
+            // Too wide a sway for the stuck rule.
+            assert!(!h.stuck(&sway(t), t), "{t}");
+            if h.idle(&sway(t), t, 1_000_000 + 10 * i as usize) {
+                fired.push(t);
+            }
+        }
+        assert_eq!(fired, [IDLE_TIME + 0.5, 2.0 * IDLE_TIME + 1.0]);
+        // The same sway while the map grows by IDLE_GAIN every 30 s: never idle.
+        let mut h = Headway::default();
+        for i in 0..=300 {
+            let t = f64::from(i) * 0.5;
+            let known = 1_000_000 + IDLE_GAIN * (i / 60) as usize;
+            assert!(!h.idle(&sway(t), t, known), "{t}");
+        }
+        // Flying on at 0.5 m/s with nothing new in view: never idle.
+        let mut h = Headway::default();
+        for i in 0..=300 {
+            let t = f64::from(i) * 0.5;
+            let p = Point3::new(0.5 * t, 0.0, 1.0);
+            assert!(!h.idle(&p, t, 1_000_000), "{t}");
+        }
     }
 
     #[test]
