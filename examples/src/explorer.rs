@@ -2796,8 +2796,8 @@ mod tests {
 
     #[test]
     fn a_uav_that_turns_back_and_forth_and_sees_nothing_new_is_idle() {
-        // Back and forth between two places 6 m apart (wider than the stuck box), the map
-        // gaining ten cells a second: idle once more than IDLE_TIME has passed, and again
+        // Back and forth between two places 5.2 m apart (wider than the stuck box), the map
+        // gaining twenty cells a second: idle once more than IDLE_TIME has passed, and again
         // IDLE_TIME after that.
         let (a, b) = (Point3::new(46.5, 5.5, 2.6), Point3::new(51.0, 3.0, 2.9));
         let sway = |t: f64| a + (b - a) * (0.5 - 0.5 * (t * 0.15).cos());
