@@ -948,31 +948,56 @@ fn densify(path: &[[f64; 3]], spacing: f64) -> Vec<[f64; 3]> {
     out
 }
 
+/// The box of the UAV's positions since a clock started.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    lo: Point3<f64>,
+    hi: Point3<f64>,
+    since: f64,
+}
+
+impl Span {
+    fn start(here: &Point3<f64>, t: f64) -> Self {
+        Self {
+            lo: *here,
+            hi: *here,
+            since: t,
+        }
+    }
+
+    /// Takes `here` in, unless the box would then be wider than `diagonal`: then it stays as
+    /// it was and says no.
+    fn fits(&mut self, here: &Point3<f64>, diagonal: f64) -> bool {
+        let (lo, hi) = (self.lo.inf(here), self.hi.sup(here));
+        if (hi - lo).norm() > diagonal {
+            return false;
+        }
+        (self.lo, self.hi) = (lo, hi);
+        true
+    }
+}
+
 /// Whether the UAV makes headway: it is stuck once its positions since the clock last
 /// started have fitted in a box of diagonal [`STUCK_SPAN`] for longer than [`STUCK_TIME`].
 /// The clock starts again whenever they no longer fit.
 #[derive(Debug, Clone, Copy, Default)]
 struct Headway {
-    /// The box of the positions since `since`: (least corner, greatest corner, since).
-    span: Option<(Point3<f64>, Point3<f64>, f64)>,
-    /// The same for [`Headway::idle`], with the map's known cells at `since`.
-    idle: Option<(Point3<f64>, Point3<f64>, f64, usize)>,
+    /// The positions since the stuck clock started.
+    span: Option<Span>,
+    /// The same for [`Headway::idle`], with the map's known cells when its clock started.
+    idle: Option<(Span, usize)>,
 }
 
 impl Headway {
     /// Records the UAV at `here` at time `t` and says whether it is stuck.
     fn stuck(&mut self, here: &Point3<f64>, t: f64) -> bool {
-        let Some((lo, hi, since)) = self.span else {
-            self.restart(here, t);
-            return false;
-        };
-        let (lo, hi) = (lo.inf(here), hi.sup(here));
-        if (hi - lo).norm() > STUCK_SPAN {
-            self.restart(here, t);
-            return false;
+        if let Some(span) = &mut self.span
+            && span.fits(here, STUCK_SPAN)
+        {
+            return t - span.since > STUCK_TIME;
         }
-        self.span = Some((lo, hi, since));
-        t - since > STUCK_TIME
+        self.restart(here, t);
+        false
     }
 
     /// Records the UAV at `here` at time `t` with a map of `known` cells and says whether it
@@ -981,27 +1006,23 @@ impl Headway {
     /// [`IDLE_TIME`] has passed. The clock starts again when either no longer holds, and when
     /// it says idle.
     fn idle(&mut self, here: &Point3<f64>, t: f64, known: usize) -> bool {
-        let start = (*here, *here, t, known);
-        let Some((lo, hi, since, known0)) = self.idle else {
-            self.idle = Some(start);
-            return false;
-        };
-        let (lo, hi) = (lo.inf(here), hi.sup(here));
-        if (hi - lo).norm() > IDLE_SPAN || known >= known0.saturating_add(IDLE_GAIN) {
-            self.idle = Some(start);
-            return false;
+        let mut idle = false;
+        if let Some((span, known0)) = &mut self.idle
+            && span.fits(here, IDLE_SPAN)
+            && known < known0.saturating_add(IDLE_GAIN)
+        {
+            idle = t - span.since > IDLE_TIME;
+            if !idle {
+                return false;
+            }
         }
-        if t - since > IDLE_TIME {
-            self.idle = Some(start);
-            return true;
-        }
-        self.idle = Some((lo, hi, since, known0));
-        false
+        self.idle = Some((Span::start(here, t), known));
+        idle
     }
 
     /// Starts the clock again from `here` at `t`.
     fn restart(&mut self, here: &Point3<f64>, t: f64) {
-        self.span = Some((*here, *here, t));
+        self.span = Some(Span::start(here, t));
     }
 }
 
