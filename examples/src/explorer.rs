@@ -738,6 +738,33 @@ fn segment_free(
     })
 }
 
+/// Removes the edges of the graph path `path` that join two permanent nodes (ids below
+/// `first_temporary`) and no longer keep `clearance` from the map's obstacles (walls seen
+/// after an edge was made can narrow it); returns how many left the graph.
+fn remove_narrow_edges(
+    graph: &mut TopoGraph,
+    map: &VoxelMap,
+    path: &[NodeId],
+    first_temporary: NodeId,
+    clearance: f64,
+) -> Result<usize, ExploreError> {
+    let mut removed = 0;
+    for w in path.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if a >= first_temporary || b >= first_temporary {
+            continue;
+        }
+        let (pa, pb) = (
+            Point3::from(graph.position(a)?),
+            Point3::from(graph.position(b)?),
+        );
+        if !segment_free(map, &pa, &pb, clearance, 0.0) && graph.remove_edge(a, b)? {
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// A shortest path on the map's cells from `from` to `to` through known-free cells whose
 /// centres keep `clearance` (26-connected, A*), shortened by skipping to the farthest vertex
 /// each [`segment_free`] segment reaches; `None` if none is found within `max_expansions`
@@ -1239,6 +1266,9 @@ struct Explorer<'a> {
     /// clusters (the dynamic clusters regroup as the UAV moves, and their viewpoints and
     /// centres with them).
     holding: bool,
+    /// Whether the last trajectory flown was a move away from walls (every trajectory
+    /// along the path came too close to one).
+    escaped: bool,
     /// Since when the plan has had no target, or none reachable.
     stalled_since: Option<f64>,
     /// Viewpoints flown to whose frontier stayed: targets there are not chosen again.
@@ -1389,6 +1419,7 @@ impl Explorer<'_> {
         // The first target of the tour with a graph path; failing that, the first ones the
         // grid search reaches (their paths then join the graph).
         let mut chosen: Option<(usize, Vec<[f64; 3]>)> = None;
+        let mut via: Vec<NodeId> = Vec::new();
         for &i in tour.order.iter().filter(|&&i| i != 0) {
             if let Some(path) = self.graph.shortest_path(odom, views[i - 1])? {
                 let pts = path
@@ -1396,6 +1427,7 @@ impl Explorer<'_> {
                     .iter()
                     .map(|&n| self.graph.position(n))
                     .collect::<Result<Vec<_>, _>>()?;
+                via = path.nodes;
                 chosen = Some((i - 1, pts));
                 break;
             }
@@ -1495,6 +1527,15 @@ impl Explorer<'_> {
         if stuck {
             self.exhausted.push(target.viewpoint);
             self.headway.restart(&here, t);
+            if self.escaped {
+                // Swaying in front of a way that walls seen since have narrowed: every
+                // plan through it would sway again.
+                let narrow = self
+                    .config
+                    .clearance
+                    .min(self.config.flight.radius + SAFETY_MARGIN + self.config.corridor);
+                remove_narrow_edges(&mut self.graph, &self.map, &via, odom, narrow)?;
+            }
         }
         let same = self
             .target
@@ -1517,6 +1558,7 @@ impl Explorer<'_> {
         cfg.corridor_radius = Some(self.config.corridor);
         cfg.waypoint_weight = 1e4;
         let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
+        let mut escape = false;
         let traj = if at_rest && (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
             // Already there: after a second of looking, a frontier that stays is out of view
             // from here; do not come back for it.
@@ -1545,6 +1587,7 @@ impl Explorer<'_> {
                 if !self.too_close(&second, 0.0)? {
                     Some(second)
                 } else if force || self.reference.traj.is_none() || self.reference.done(t) {
+                    escape = true;
                     // It will be flown whatever it is: fly the one that keeps the most room.
                     Some(safest(
                         &self.map,
@@ -1574,6 +1617,7 @@ impl Explorer<'_> {
         }
         if traj.is_some() {
             self.arrival = None;
+            self.escaped = escape;
         }
         self.reference.traj = traj;
         self.reference.t0 = t;
@@ -1761,6 +1805,7 @@ pub fn explore(
         headway: Headway::default(),
         target_members: Vec::new(),
         holding: false,
+        escaped: false,
         last_targets: 0,
         region: (mission.min, mission.max),
         mission: mission_cache,
@@ -2501,6 +2546,55 @@ mod tests {
         // Every cluster's targets given up: nothing.
         let none = open_targets(&map, clusters, &near, 1, &viewpoints, &all_views).unwrap();
         assert!(none.is_empty());
+    }
+
+    /// Graph edges narrowed below a clearance leave the graph, wider ones and edges of
+    /// temporary nodes stay.
+    #[test]
+    fn narrowed_edges_leave_the_graph() {
+        let map = walled_map();
+        let free = |_: &[f64; 3], _: &[f64; 3]| true;
+        let mut graph = TopoGraph::new();
+        // Through the gap beside the wall's end (y = 4): 0.3 m from it at y = 4.3, 1.2 m
+        // at y = 5.2 (0.8 m from the box's face at y = 6).
+        let nodes: Vec<NodeId> = [
+            [4.0, 4.3, 1.5],
+            [6.0, 4.3, 1.5],
+            [4.0, 5.2, 1.5],
+            [6.0, 5.2, 1.5],
+        ]
+        .into_iter()
+        .map(|p| graph.add_node(p, 10.0, &free).unwrap())
+        .collect();
+        let uav = graph
+            .add_temporary_node([5.0, 4.3, 1.5], 10.0, &free)
+            .unwrap();
+        let joined = |g: &TopoGraph, a: NodeId, b: NodeId| {
+            g.neighbors(a).unwrap().iter().any(|&(n, _)| n == b)
+        };
+        let near = [uav, nodes[0], nodes[1]];
+        assert_eq!(
+            remove_narrow_edges(&mut graph, &map, &near, uav, 0.4).unwrap(),
+            1
+        );
+        assert!(!joined(&graph, nodes[0], nodes[1]) && !joined(&graph, nodes[1], nodes[0]));
+        // The temporary node's edge is not judged, though it is as narrow.
+        assert!(joined(&graph, uav, nodes[0]));
+        let wide = [nodes[2], nodes[3]];
+        assert_eq!(
+            remove_narrow_edges(&mut graph, &map, &wide, uav, 0.4).unwrap(),
+            0
+        );
+        assert!(joined(&graph, nodes[2], nodes[3]));
+        // A tighter clearance keeps what it passes; an edge already gone is not counted.
+        assert_eq!(
+            remove_narrow_edges(&mut graph, &map, &near, uav, 0.2).unwrap(),
+            0
+        );
+        assert_eq!(
+            remove_narrow_edges(&mut graph, &map, &near, uav, 0.4).unwrap(),
+            0
+        );
     }
 
     #[test]
