@@ -1289,6 +1289,12 @@ struct Explorer<'a> {
 }
 
 impl Explorer<'_> {
+    /// Whether a target made of the frontier clusters `members` shares one with the current
+    /// target (the idle rule's hold).
+    fn shares_target_clusters(&self, members: &[frontier::ClusterId]) -> bool {
+        members.iter().any(|m| self.target_members.contains(m))
+    }
+
     /// Adds a permanent graph node at `p` unless one is within the node spacing.
     fn add_node(&mut self, p: &Point3<f64>) -> Result<(), ExploreError> {
         let near = (0..self.graph.len()).any(|n| {
@@ -1377,7 +1383,7 @@ impl Explorer<'_> {
             && targets.iter().any(|t| {
                 (t.viewpoint - vp).norm() < KEEP_RADIUS
                     || (t.center - center).norm() < KEEP_RADIUS
-                    || (self.holding && t.members.iter().any(|m| self.target_members.contains(m)))
+                    || (self.holding && self.shares_target_clusters(&t.members))
             })
         {
             self.stalled_since = None;
@@ -1622,12 +1628,7 @@ impl Explorer<'_> {
         self.reference.traj = traj;
         self.reference.t0 = t;
         self.reference.hover = p;
-        if self.holding
-            && !target
-                .members
-                .iter()
-                .any(|m| self.target_members.contains(m))
-        {
+        if self.holding && !self.shares_target_clusters(&target.members) {
             self.holding = false;
         }
         self.target = Some((target.viewpoint, target.center));
