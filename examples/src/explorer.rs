@@ -540,6 +540,9 @@ pub struct ExploreLog {
     /// Whether the run ended because no reachable frontier was left (rather than at the time
     /// budget).
     pub finished: bool,
+    /// Whether beams that returned nothing cleared the map along them
+    /// ([`ExplorerConfig::clear_on_no_return`]).
+    pub clear_on_no_return: bool,
     /// Why the harness stopped the run early, if it did: `"odometry lost"` when the
     /// estimate strayed more than [`ExplorerConfig::lost_distance`] from the truth, or
     /// `"left the scene"` when the true position left the bounds by more than a metre. These
@@ -1840,6 +1843,7 @@ pub fn explore(
     );
     let mut log = ExploreLog {
         controller: config.controller.to_string(),
+        clear_on_no_return: config.clear_on_no_return,
         min_clearance: f64::INFINITY,
         ..ExploreLog::default()
     };

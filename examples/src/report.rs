@@ -52,6 +52,8 @@ pub struct Report {
     pub seed: u64,
     /// Whether the run ended with no reachable frontier left.
     pub finished: bool,
+    /// Whether beams that returned nothing cleared the map along them.
+    pub clear_no_return: bool,
     /// Why the harness stopped the run early, if it did.
     pub aborted: Option<&'static str>,
     /// Simulated time at the end \[s\].
@@ -107,6 +109,7 @@ impl Report {
             controller: log.controller.clone(),
             seed,
             finished: log.finished,
+            clear_no_return: log.clear_on_no_return,
             aborted: log.aborted,
             exploration_time_s: log.exploration_time,
             trajectory_length_m: trajectory_length(&truth),
@@ -140,6 +143,7 @@ impl Report {
             "controller": self.controller,
             "seed": self.seed,
             "finished": self.finished,
+            "clear_no_return": self.clear_no_return,
             "aborted": self.aborted,
             "exploration_time_s": self.exploration_time_s,
             "trajectory_length_m": self.trajectory_length_m,
@@ -406,6 +410,7 @@ mod tests {
             "controller",
             "seed",
             "finished",
+            "clear_no_return",
             "exploration_time_s",
             "trajectory_length_m",
             "coverage",

@@ -19,7 +19,7 @@ use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore
 use fu_mpc_examples::metrics::{time_to_coverage, write_tum};
 use fu_mpc_examples::plot::{LinePlot, PALETTE, Series};
 use fu_mpc_examples::report::{Report, say, write_pictures};
-use fu_mpc_examples::setup::{load_scene, parse_band};
+use fu_mpc_examples::setup::{clears_no_return, load_scene, parse_band};
 use rayon::prelude::*;
 use serde_json::Value;
 
@@ -43,11 +43,15 @@ struct Args {
     /// Time budget of each run, simulated seconds.
     #[arg(long, default_value_t = 600.0)]
     max_time: f64,
-    /// Beams that return nothing clear the map along them up to its range (for scenes open
-    /// to the sky); off by default. Runs with it are kept apart (their directories end in
-    /// `-clear`).
-    #[arg(long)]
+    /// Beams that return nothing clear the map along them up to its range in every scene. By
+    /// default they do only in point clouds open to the sky (see `explore --help`). Runs with
+    /// it are kept apart (their directories end in `-clear`).
+    #[arg(long, conflicts_with = "keep_no_return")]
     clear_no_return: bool,
+    /// Beams that return nothing leave the map as it is, even in a cloud open to the sky.
+    /// Runs with it are kept apart (their directories end in `-keep`).
+    #[arg(long)]
+    keep_no_return: bool,
     /// Speed band MIN,MAX of the optimising controllers (fu-mpc, uncertainty, frontier, icr)
     /// in deg/s; by default 30,180. Runs with it are kept apart (their directories end in
     /// `-band_MIN_MAX`).
@@ -72,6 +76,9 @@ fn run_dir(
     if args.clear_no_return {
         suffix += "-clear";
     }
+    if args.keep_no_return {
+        suffix += "-keep";
+    }
     if let Some([lo, hi]) = args.band {
         suffix += &format!("-band_{lo}_{hi}");
     }
@@ -90,7 +97,6 @@ fn run_one(
     let mut config = ExplorerConfig {
         controller,
         max_time: args.max_time,
-        clear_on_no_return: args.clear_no_return,
         ..ExplorerConfig::default()
     };
     if let Some([lo, hi]) = args.band {
@@ -103,6 +109,7 @@ fn run_one(
         config.map.resolution,
         None,
     )?;
+    config.clear_on_no_return = clears_no_return(args.clear_no_return, args.keep_no_return, &scene);
     let mission = Mission {
         world: &scene.world,
         min: scene.area.min,
@@ -213,9 +220,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         args.seeds,
         args.max_time,
         if args.clear_no_return {
-            " Beams that return nothing clear the map along them (`--clear-no-return`)."
+            " Beams that return nothing clear the map along them in every scene \
+             (`--clear-no-return`)."
+        } else if args.keep_no_return {
+            " Beams that return nothing leave the map as it is in every scene \
+             (`--keep-no-return`)."
         } else {
-            ""
+            " Beams that return nothing clear the map along them only in point clouds open \
+             to the sky."
         },
         args.band.map_or(String::new(), |[lo, hi]| format!(
             " The optimising controllers keep the motor within {lo}–{hi} deg/s (`--band`)."

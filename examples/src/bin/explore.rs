@@ -15,7 +15,7 @@ use clap::Parser;
 use fu_mpc_examples::explorer::{ControllerKind, ExplorerConfig, Mission, explore};
 use fu_mpc_examples::metrics::write_tum;
 use fu_mpc_examples::report::{Report, say, write_pictures};
-use fu_mpc_examples::setup::{load_scene, parse_band};
+use fu_mpc_examples::setup::{clears_no_return, load_scene, parse_band};
 use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Point3;
 
@@ -43,10 +43,14 @@ struct Args {
     /// Output directory.
     #[arg(long, default_value = "out/explore")]
     out: PathBuf,
-    /// Beams that return nothing clear the map along them up to its range (for scenes open
-    /// to the sky, e.g. a cloud without a ceiling); off by default.
-    #[arg(long)]
+    /// Beams that return nothing clear the map along them up to its range. By default only in
+    /// point clouds open to the sky (no ceiling: fewer than half of the cloud's 0.5 m columns
+    /// reach within 0.5 m of its top); this turns it on for every scene.
+    #[arg(long, conflicts_with = "keep_no_return")]
     clear_no_return: bool,
+    /// Beams that return nothing leave the map as it is, even in a cloud open to the sky.
+    #[arg(long)]
+    keep_no_return: bool,
     /// Speed band MIN,MAX of the optimising controllers (fu-mpc, uncertainty, frontier, icr)
     /// in deg/s; by default 30,180. Fixed speeds and rigid-yaw ignore it.
     #[arg(long, value_parser = parse_band, allow_hyphen_values = true)]
@@ -72,7 +76,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut config = ExplorerConfig {
         controller: args.controller,
         max_time: args.max_time,
-        clear_on_no_return: args.clear_no_return,
         ..ExplorerConfig::default()
     };
     if let Some([lo, hi]) = args.band {
@@ -85,6 +88,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         config.map.resolution,
         args.start,
     )?;
+    config.clear_on_no_return = clears_no_return(args.clear_no_return, args.keep_no_return, &scene);
+    if config.clear_on_no_return && !args.clear_no_return {
+        say(format_args!(
+            "{} is open to the sky: beams that return nothing clear the map along them \
+             (--keep-no-return to leave it)",
+            scene.name
+        ));
+    }
     std::fs::create_dir_all(&args.out)?;
     let mission = Mission {
         world: &scene.world,
