@@ -252,15 +252,18 @@ impl FromStr for ControllerKind {
 /// stands vertical and the motor sweeps it around — the paper's front-mounted rotating LiDAR.
 /// The scan direction (the motor's x axis) points forward at θ = 0.
 pub fn explorer_chain() -> KinematicChain {
+    front_mount(Vector3::new(core::f64::consts::FRAC_PI_2, 0.0, 0.0))
+}
+
+/// The Mid-360 on the motor at the front of the body, turned by `rotation` (an axis-angle
+/// vector \[rad\]) in the motor frame.
+fn front_mount(rotation: Vector3<f64>) -> KinematicChain {
     match Extrinsics::try_new(
-        Isometry3::new(
-            Vector3::new(0.02, 0.0, 0.05),
-            Vector3::new(core::f64::consts::FRAC_PI_2, 0.0, 0.0),
-        ),
+        Isometry3::new(Vector3::new(0.02, 0.0, 0.05), rotation),
         Isometry3::translation(0.12, 0.0, -0.03),
     ) {
         Ok(e) => KinematicChain::new(e),
-        // Constant, finite, unit extrinsics: always valid.
+        // Finite, unit extrinsics (the callers' rotations are constant): always valid.
         Err(_) => KinematicChain::default(),
     }
 }
@@ -280,17 +283,7 @@ pub const RIGID_PITCH_DEG: f64 = 30.0;
 /// vertical, was the baseline before: its odometry was lost in seven of nine large-scene
 /// runs.)
 pub fn rigid_chain() -> KinematicChain {
-    match Extrinsics::try_new(
-        Isometry3::new(
-            Vector3::new(0.02, 0.0, 0.05),
-            Vector3::new(0.0, RIGID_PITCH_DEG.to_radians(), 0.0),
-        ),
-        Isometry3::translation(0.12, 0.0, -0.03),
-    ) {
-        Ok(e) => KinematicChain::new(e),
-        // Constant, finite, unit extrinsics: always valid.
-        Err(_) => KinematicChain::default(),
-    }
+    front_mount(Vector3::new(0.0, RIGID_PITCH_DEG.to_radians(), 0.0))
 }
 
 /// Settings of an exploration run. Defaults: the paper's 10 Hz scan cycle and 2 Hz global
@@ -2996,13 +2989,7 @@ mod tests {
         // Behind: the ceiling 3 m up and 2 m back (56° up), not the floor.
         assert!(sees(-2.0, 0.0, 4.5) && !sees(-3.0, 0.0, 0.0));
         // Upright (no pitch) the floor 3 m ahead is out of view.
-        let upright = KinematicChain::new(
-            Extrinsics::try_new(
-                Isometry3::translation(0.02, 0.0, 0.05),
-                Isometry3::translation(0.12, 0.0, -0.03),
-            )
-            .unwrap(),
-        );
+        let upright = front_mount(Vector3::zeros());
         assert!(
             !mid.can_see(&upright, &body, 0.0, &Point3::new(3.0, 0.0, 0.0))
                 .unwrap()
