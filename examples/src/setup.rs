@@ -55,8 +55,9 @@ pub struct LoadedScene {
     pub open_top: bool,
 }
 
-/// Whether a point cloud has no ceiling: fewer than half of the [`SKY_COLUMN`]-wide columns
-/// its finite points fall in reach within [`SKY_BAND`] of its highest point.
+/// Whether a point cloud has no ceiling: of the [`SKY_COLUMN`]-wide vertical columns its
+/// finite points fall in, fewer than half hold a point within [`SKY_BAND`] of the cloud's
+/// highest point.
 ///
 /// A scanned room or building with its ceiling has points near its top over nearly all of
 /// its footprint; a flat scanned without one (such as the shared `apartment.pcd`, 4 % of
@@ -118,7 +119,8 @@ pub fn open_to_the_sky(cloud: &[Point3<f64>]) -> bool {
 }
 
 /// Whether beams that return nothing clear the map in a run on `scene`: `clear` forces it
-/// on, `keep` forces it off, and by default it follows [`LoadedScene::open_top`].
+/// on (and wins over `keep`), `keep` forces it off, and otherwise it follows
+/// [`LoadedScene::open_top`].
 ///
 /// # Example
 /// ```
