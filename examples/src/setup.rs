@@ -90,21 +90,17 @@ pub struct LoadedScene {
 /// assert!(!open_to_the_sky(&cloud));
 /// ```
 pub fn open_to_the_sky(cloud: &[Point3<f64>]) -> bool {
-    let finite: Vec<&Point3<f64>> = cloud
-        .iter()
-        .filter(|p| p.iter().all(|v| v.is_finite()))
-        .collect();
-    let Some(top) = finite.iter().map(|p| p.z).reduce(f64::max) else {
+    let finite = || cloud.iter().filter(|p| p.iter().all(|v| v.is_finite()));
+    // The lowest x and y and the highest z.
+    let Some((x0, y0, top)) = finite().fold(None, |acc, p| {
+        let (x, y, z) = acc.unwrap_or((p.x, p.y, p.z));
+        Some((x.min(p.x), y.min(p.y), z.max(p.z)))
+    }) else {
         return false;
     };
-    let (x0, y0) = finite
-        .iter()
-        .fold((f64::INFINITY, f64::INFINITY), |(x, y), p| {
-            (x.min(p.x), y.min(p.y))
-        });
     // Column -> its highest point.
     let mut columns: std::collections::BTreeMap<(i64, i64), f64> = Default::default();
-    for p in &finite {
+    for p in finite() {
         // Finite offsets over a positive width; a cloud wider than 2^63 columns saturates.
         #[allow(clippy::cast_possible_truncation)]
         let key = (
