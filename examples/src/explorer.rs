@@ -102,6 +102,11 @@ const IDLE_TIME: f64 = 60.0;
 /// and forth between two targets a few metres apart.
 const IDLE_SPAN: f64 = 10.0;
 
+/// A UAV whose map has gained fewer than [`IDLE_GAIN`] known cells in [`IDLE_TIME`] while it
+/// flew at least this many times the diagonal of the box its positions fitted in is idle as
+/// well: it went back and forth, over a box of any size (see [`Headway::idle`]).
+const IDLE_DETOUR: f64 = 3.0;
+
 /// Known cells the map must gain in [`IDLE_TIME`] for the UAV not to be idle: 16 m³ of
 /// 0.2 m cells, while exploring the map gains thousands a second.
 const IDLE_GAIN: usize = 2_000;
@@ -120,6 +125,10 @@ const DWELL: f64 = 1.0;
 /// The current target is kept while a target of the new plan has its viewpoint or its
 /// frontier centre this close to it \[m\].
 const KEEP_RADIUS: f64 = 1.0;
+
+/// While the idle rule holds on to a target, it is kept as long as a frontier cluster's centre
+/// lies this close to its frontier centre \[m\].
+const HOLD_RADIUS: f64 = 3.0;
 
 /// Trajectories keep this much more than the UAV's radius from known obstacles \[m\].
 const SAFETY_MARGIN: f64 = 0.05;
@@ -1039,6 +1048,29 @@ struct Headway {
     span: Option<Span>,
     /// The same for [`Headway::idle`], with the map's known cells when its clock started.
     idle: Option<(Span, usize)>,
+    /// The detour window of [`Headway::idle`].
+    detour: Option<Detour>,
+}
+
+/// The positions of one [`IDLE_TIME`] window however far they spread, the way flown through
+/// them, and the map's known cells when it started.
+#[derive(Debug, Clone, Copy)]
+struct Detour {
+    span: Span,
+    known: usize,
+    flown: f64,
+    last: Point3<f64>,
+}
+
+impl Detour {
+    fn start(here: &Point3<f64>, t: f64, known: usize) -> Self {
+        Self {
+            span: Span::start(here, t),
+            known,
+            flown: 0.0,
+            last: *here,
+        }
+    }
 }
 
 impl Headway {
@@ -1054,11 +1086,17 @@ impl Headway {
     }
 
     /// Records the UAV at `here` at time `t` with a map of `known` cells and says whether it
-    /// is idle: its positions since the idle clock last started fit in a box of diagonal
-    /// [`IDLE_SPAN`], the map has gained fewer than [`IDLE_GAIN`] cells since, and more than
-    /// [`IDLE_TIME`] has passed. The clock starts again when either no longer holds, and when
-    /// it says idle.
+    /// is idle, by either of two clocks. The box clock: its positions since the clock last
+    /// started fit in a box of diagonal [`IDLE_SPAN`], the map has gained fewer than
+    /// [`IDLE_GAIN`] cells since, and more than [`IDLE_TIME`] has passed; it starts again
+    /// when either no longer holds, and when it says idle. The detour clock, for a UAV
+    /// turning back and forth over more than that box: the map has gained fewer than
+    /// [`IDLE_GAIN`] cells in [`IDLE_TIME`] while the UAV's positions spread over a box
+    /// wider than [`IDLE_SPAN`] and it flew at least [`IDLE_DETOUR`] times the box's
+    /// diagonal (a flight from one place to another flies about that diagonal); it starts
+    /// again when the map gains them and after each [`IDLE_TIME`].
     fn idle(&mut self, here: &Point3<f64>, t: f64, known: usize) -> bool {
+        let detour = self.detour_idle(here, t, known);
         let mut idle = false;
         if let Some((span, known0)) = &mut self.idle
             && span.fits(here, IDLE_SPAN)
@@ -1066,10 +1104,34 @@ impl Headway {
         {
             idle = t - span.since > IDLE_TIME;
             if !idle {
-                return false;
+                return detour;
             }
         }
         self.idle = Some((Span::start(here, t), known));
+        idle || detour
+    }
+
+    /// The detour clock of [`Headway::idle`].
+    fn detour_idle(&mut self, here: &Point3<f64>, t: f64, known: usize) -> bool {
+        let Some(d) = &mut self.detour else {
+            self.detour = Some(Detour::start(here, t, known));
+            return false;
+        };
+        if known >= d.known.saturating_add(IDLE_GAIN) {
+            *d = Detour::start(here, t, known);
+            return false;
+        }
+        d.flown += (here - d.last).norm();
+        d.last = *here;
+        // The box grows with every position (a diagonal of infinity: it always fits).
+        d.span.fits(here, f64::INFINITY);
+        if t - d.span.since <= IDLE_TIME {
+            return false;
+        }
+        // Only boxes the box clock cannot hold: it answers for the others.
+        let diagonal = (d.span.hi - d.span.lo).norm();
+        let idle = diagonal > IDLE_SPAN && d.flown >= IDLE_DETOUR * diagonal;
+        *d = Detour::start(here, t, known);
         idle
     }
 
@@ -1391,6 +1453,14 @@ impl Explorer<'_> {
             .iter()
             .filter_map(|id| self.frontiers.cluster(*id))
             .collect();
+        // While holding, the target stays as long as frontier is left near its centre, in
+        // the plan or not: which targets the plan holds changes as the UAV moves.
+        let held = self.holding
+            && self.target.is_some_and(|(_, c)| {
+                clusters
+                    .iter()
+                    .any(|k| (k.center() - c).norm() < HOLD_RADIUS)
+            });
         let targets = open_targets(
             &self.map,
             clusters,
@@ -1406,11 +1476,12 @@ impl Explorer<'_> {
         if let Some((vp, center)) = self.target
             && !force
             && !self.reference.done(t)
-            && targets.iter().any(|t| {
-                (t.viewpoint - vp).norm() < KEEP_RADIUS
-                    || (t.center - center).norm() < KEEP_RADIUS
-                    || (self.holding && self.shares_target_clusters(&t.members))
-            })
+            && (held
+                || targets.iter().any(|t| {
+                    (t.viewpoint - vp).norm() < KEEP_RADIUS
+                        || (t.center - center).norm() < KEEP_RADIUS
+                        || (self.holding && self.shares_target_clusters(&t.members))
+                }))
         {
             self.stalled_since = None;
             return Ok(false);
@@ -2972,6 +3043,54 @@ mod tests {
             let t = f64::from(i) * 0.5;
             let p = Point3::new(0.5 * t, 0.0, 1.0);
             assert!(!h.idle(&p, t, 1_000_000), "{t}");
+        }
+    }
+
+    /// The maze's `frontier` seed 2 turned back and forth between (28.4, 7.1, 2.3) and
+    /// (31.4, 17.1, 3.1) for 450 s: a box 10.5 m across, wider than the idle box.
+    #[test]
+    fn a_uav_that_turns_back_and_forth_over_more_than_the_idle_box_is_idle() {
+        let (a, b) = (Point3::new(28.4, 7.1, 2.3), Point3::new(31.4, 17.1, 3.1));
+        assert!((b - a).norm() > IDLE_SPAN);
+        // One way in 7 s (about 1.5 m/s), as in that run.
+        let sway = |t: f64| a + (b - a) * (0.5 - 0.5 * (t * core::f64::consts::PI / 7.0).cos());
+        let mut h = Headway::default();
+        let mut fired = Vec::new();
+        for i in 0..=400 {
+            let t = f64::from(i) * 0.5;
+            if h.idle(&sway(t), t, 1_000_000 + 10 * i as usize) {
+                fired.push(t);
+            }
+        }
+        // At the end of each window: the detour clock's alone.
+        assert_eq!(
+            fired,
+            [
+                IDLE_TIME + 0.5,
+                2.0 * IDLE_TIME + 1.0,
+                3.0 * IDLE_TIME + 1.5
+            ]
+        );
+        // The same sway while the map grows by IDLE_GAIN every 30 s: never idle.
+        let mut h = Headway::default();
+        for i in 0..=400 {
+            let t = f64::from(i) * 0.5;
+            let known = 1_000_000 + IDLE_GAIN * (i / 60) as usize;
+            assert!(!h.idle(&sway(t), t, known), "{t}");
+        }
+        // A flight through a maze with nothing new in view: 1.5 m/s on a zigzag across a
+        // corridor 20 m wide while it moves 0.6 m/s along it, turning every 15 s. It flies
+        // about twice its box's diagonal in a window: never idle.
+        let zigzag = |t: f64| {
+            let leg = (t / 15.0).floor();
+            let s = t - 15.0 * leg;
+            let y = if leg % 2.0 == 0.0 { s } else { 15.0 - s };
+            Point3::new(0.6 * t, 1.3 * y, 1.5)
+        };
+        let mut h = Headway::default();
+        for i in 0..=400 {
+            let t = f64::from(i) * 0.5;
+            assert!(!h.idle(&zigzag(t), t, 1_000_000), "{t}");
         }
     }
 
