@@ -103,8 +103,9 @@ const IDLE_TIME: f64 = 60.0;
 const IDLE_SPAN: f64 = 10.0;
 
 /// A UAV whose map has gained fewer than [`IDLE_GAIN`] known cells in [`IDLE_TIME`] while it
-/// flew at least this many times the diagonal of the box its positions fitted in is idle as
-/// well: it went back and forth, over a box of any size (see [`Headway::idle`]).
+/// flew at least this many times the diagonal of the box its positions spread over is idle
+/// as well: it went back and forth, over a box wider than [`IDLE_SPAN`] (see
+/// [`Headway::idle`]).
 const IDLE_DETOUR: f64 = 3.0;
 
 /// Known cells the map must gain in [`IDLE_TIME`] for the UAV not to be idle: 16 m³ of
