@@ -1031,12 +1031,23 @@ impl Span {
     /// Takes `here` in, unless the box would then be wider than `diagonal`: then it stays as
     /// it was and says no.
     fn fits(&mut self, here: &Point3<f64>, diagonal: f64) -> bool {
-        let (lo, hi) = (self.lo.inf(here), self.hi.sup(here));
-        if (hi - lo).norm() > diagonal {
+        let before = *self;
+        self.grow(here);
+        if self.diagonal() > diagonal {
+            *self = before;
             return false;
         }
-        (self.lo, self.hi) = (lo, hi);
         true
+    }
+
+    /// Takes `here` in however wide the box becomes.
+    fn grow(&mut self, here: &Point3<f64>) {
+        (self.lo, self.hi) = (self.lo.inf(here), self.hi.sup(here));
+    }
+
+    /// The box's diagonal \[m\].
+    fn diagonal(&self) -> f64 {
+        (self.hi - self.lo).norm()
     }
 }
 
@@ -1124,13 +1135,12 @@ impl Headway {
         }
         d.flown += (here - d.last).norm();
         d.last = *here;
-        // The box grows with every position (a diagonal of infinity: it always fits).
-        d.span.fits(here, f64::INFINITY);
+        d.span.grow(here);
         if t - d.span.since <= IDLE_TIME {
             return false;
         }
         // Only boxes the box clock cannot hold: it answers for the others.
-        let diagonal = (d.span.hi - d.span.lo).norm();
+        let diagonal = d.span.diagonal();
         let idle = diagonal > IDLE_SPAN && d.flown >= IDLE_DETOUR * diagonal;
         *d = Detour::start(here, t, known);
         idle
