@@ -196,6 +196,65 @@ impl<const D: usize> Trajectory<D> {
     pub fn max_acceleration(&self, samples_per_piece: usize) -> f64 {
         self.max_derivative_norm(2, samples_per_piece)
     }
+
+    /// This trajectory followed by `next`: `next`'s pieces after this one's, so the result
+    /// lasts `self.duration() + next.duration()` and at time `self.duration() + t` is where
+    /// `next` is at `t`.
+    ///
+    /// # Example
+    /// ```
+    /// use minco::MinimumJerk;
+    /// # fn main() -> Result<(), minco::MincoError> {
+    /// // Two moves from rest to rest: along x, then along y, stopping at the corner.
+    /// let rest = |x: f64, y: f64| [[x, y], [0.0; 2], [0.0; 2]];
+    /// let mut m = MinimumJerk::<2>::new(1)?;
+    /// m.solve(&rest(0.0, 0.0), &rest(2.0, 0.0), &[], &[2.0])?;
+    /// let first = m.trajectory()?;
+    /// m.solve(&rest(2.0, 0.0), &rest(2.0, 1.0), &[], &[1.5])?;
+    /// let both = first.then(&m.trajectory()?)?;
+    /// assert_eq!(both.duration(), 3.5);
+    /// assert_eq!(both.velocity(2.0)?, [0.0, 0.0]);
+    /// assert!((both.position(3.5)?[1] - 1.0).abs() < 1e-12);
+    /// # Ok(()) }
+    /// ```
+    ///
+    /// # Errors
+    /// [`MincoError::LengthMismatch`] when the two are of different degrees, and
+    /// [`MincoError::Infeasible`] when `next` does not start where this one ends (to 1e-9 of
+    /// the size of the coordinates); velocities and higher derivatives need not join.
+    pub fn then(&self, next: &Trajectory<D>) -> Result<Self> {
+        if next.coeffs_per_piece != self.coeffs_per_piece {
+            return Err(MincoError::LengthMismatch {
+                what: "coefficients per piece (degree + 1)",
+                expected: self.coeffs_per_piece,
+                found: next.coeffs_per_piece,
+            });
+        }
+        if self.durations.is_empty() {
+            return Ok(next.clone());
+        }
+        if next.durations.is_empty() {
+            return Ok(self.clone());
+        }
+        let end = self.position(self.duration())?;
+        let start = next.position(0.0)?;
+        let size = end.iter().chain(&start).fold(1.0f64, |m, v| m.max(v.abs()));
+        // Written so that a NaN fails the test.
+        let joins = end
+            .iter()
+            .zip(&start)
+            .all(|(a, b)| (a - b).abs() <= 1e-9 * size);
+        if !joins {
+            return Err(MincoError::Infeasible(
+                "the next trajectory does not start where this one ends",
+            ));
+        }
+        let mut durations = self.durations.clone();
+        durations.extend_from_slice(&next.durations);
+        let mut coeffs = self.coeffs.clone();
+        coeffs.extend_from_slice(&next.coeffs);
+        Ok(Self::from_parts(self.coeffs_per_piece, durations, coeffs))
+    }
 }
 
 #[cfg(test)]
@@ -217,6 +276,51 @@ mod tests {
         assert_eq!(t.piece_coefficients(usize::MAX), None);
         // 8 · (2^(bits−3) + 1) wraps to 8, the start of piece 1.
         assert_eq!(t.piece_coefficients((1 << (usize::BITS - 3)) + 1), None);
+    }
+
+    /// A joined trajectory is each part in turn, to the bit; parts of other degrees or that
+    /// do not meet are errors.
+    #[test]
+    fn then_plays_one_trajectory_after_the_other() {
+        let mut m = MinimumJerk::<2>::new(2).unwrap();
+        let rest = |x: f64, y: f64| [[x, y], [0.0; 2], [0.0; 2]];
+        m.solve(&rest(0.0, 0.0), &rest(3.0, 1.0), &[[1.0, 2.0]], &[1.0, 2.0])
+            .unwrap();
+        let a = m.trajectory().unwrap();
+        let mut one = MinimumJerk::<2>::new(1).unwrap();
+        one.solve(&rest(3.0, 1.0), &rest(-1.0, 4.0), &[], &[2.5])
+            .unwrap();
+        let b = one.trajectory().unwrap();
+        let ab = a.then(&b).unwrap();
+        assert_eq!(ab.piece_count(), 3);
+        assert_eq!(ab.duration(), 5.5);
+        // Up to the junction, which belongs to the later piece.
+        for i in 0..30 {
+            let t = f64::from(i) / 10.0;
+            assert_eq!(ab.position(t).unwrap(), a.position(t).unwrap(), "{t}");
+        }
+        for i in 0..=25 {
+            let t = f64::from(i) / 10.0;
+            let (x, y) = (ab.derivative(3.0 + t, 1).unwrap(), b.velocity(t).unwrap());
+            assert!(
+                (x[0] - y[0]).abs() < 1e-12 && (x[1] - y[1]).abs() < 1e-12,
+                "{t}"
+            );
+        }
+        assert_eq!(ab.position(5.5).unwrap(), b.position(2.5).unwrap());
+        // Not where `a` ends.
+        let c = b.then(&b);
+        assert!(matches!(c, Err(crate::MincoError::Infeasible(_))), "{c:?}");
+        // Another degree.
+        let mut snap = MinimumSnap::<2>::new(1).unwrap();
+        let rest4 = |x: f64, y: f64| [[x, y], [0.0; 2], [0.0; 2], [0.0; 2]];
+        snap.solve(&rest4(-1.0, 4.0), &rest4(0.0, 0.0), &[], &[1.0])
+            .unwrap();
+        let d = b.then(&snap.trajectory().unwrap());
+        assert!(
+            matches!(d, Err(crate::MincoError::LengthMismatch { .. })),
+            "{d:?}"
+        );
     }
 
     /// Sample counts above the cap cost no more than the cap and give its result.
