@@ -137,6 +137,9 @@ const SAFETY_MARGIN: f64 = 0.05;
 /// Around the UAV, grid paths may keep as little clearance as the UAV has \[m\].
 const ESCAPE_RADIUS: f64 = 1.0;
 
+/// Least length of a leg of [`path_legs`] that does not end the path \[m\].
+const LEG_MIN: f64 = 0.5;
+
 /// How far the short moves away from a too-close place go \[m\] (see
 /// [`safest`]).
 const ESCAPE_STEP: f64 = 1.0;
@@ -1700,6 +1703,18 @@ impl Explorer<'_> {
                     .trajectory;
                 if !self.too_close(&second, 0.0)? {
                     Some(second)
+                } else if let Some(legs) = path_legs(
+                    &self.map,
+                    self.config.flight.radius,
+                    &here,
+                    at_rest,
+                    &positions,
+                    head,
+                    cfg,
+                )? {
+                    // From rest, the path flown leg by leg keeps the clearance that both
+                    // trajectories lose where they cut its corners.
+                    Some(legs)
                 } else if force || self.reference.traj.is_none() || self.reference.done(t) {
                     escape = true;
                     // It will be flown whatever it is: fly the one that keeps the most room.
@@ -1777,6 +1792,61 @@ impl Explorer<'_> {
         }
         Ok(false)
     }
+}
+
+/// The path flown leg by leg, each leg a move from rest to rest, for a UAV at rest whose
+/// trajectories through the path's points all cut a corner too close to a wall: a single
+/// piece between rest states is a straight line, and the path's search checked its legs at
+/// the clearance. Points nearer than [`LEG_MIN`] to a leg's start (grid paths step by a
+/// cell) are passed over, except the path's end. `None` unless the UAV is at rest and
+/// every leg, all the way to the path's end, keeps the UAV's `radius` and
+/// [`SAFETY_MARGIN`] from known obstacles from its start on: no allowance near a start
+/// close to a wall, as [`Explorer::too_close`] gives, so such moves cannot creep along one,
+/// and no move to a point partway along, from which the next plan might fly back.
+fn path_legs(
+    map: &VoxelMap,
+    radius: f64,
+    here: &Point3<f64>,
+    at_rest: bool,
+    positions: &[[f64; 3]],
+    head: [[f64; 3]; 3],
+    cfg: OptimizerConfig,
+) -> Result<Option<Trajectory<3>>, ExploreError> {
+    let margin = radius + SAFETY_MARGIN;
+    let Some(&goal) = positions.last() else {
+        return Ok(None);
+    };
+    if !at_rest || positions.len() < 2 || !map.is_clear(here, margin) {
+        return Ok(None);
+    }
+    let mut from = head;
+    let mut legs: Option<Trajectory<3>> = None;
+    for q in &positions[1..] {
+        let d = (Point3::from(*q) - Point3::from(from[0])).norm();
+        if (d < LEG_MIN && *q != goal) || d == 0.0 {
+            continue;
+        }
+        let tail = [*q, [0.0; 3], [0.0; 3]];
+        // The optimiser's errors only mean no legs: the escape moves follow.
+        let Ok(out) = Optimizer::<3, 3>::new(cfg, from, tail, &[]).and_then(|mut o| o.optimize())
+        else {
+            return Ok(None);
+        };
+        let leg = out.trajectory;
+        if least_clearance(map, &leg, margin)? < margin {
+            return Ok(None);
+        }
+        legs = Some(match legs {
+            // Legs meet to the optimiser's rounding, far inside `then`'s tolerance.
+            Some(before) => match before.then(&leg) {
+                Ok(joined) => joined,
+                Err(_) => return Ok(None),
+            },
+            None => leg,
+        });
+        from = tail;
+    }
+    Ok(legs)
 }
 
 /// Of `first`, `second` and short moves from `here` (state `head`) to rest at the 26 points
@@ -2969,6 +3039,75 @@ mod tests {
         let up = to(Point3::new(3.0, 3.0, 1.5));
         let chosen = safest(&map, radius, &here, rest, cfg, up, low).unwrap();
         assert!((end(&chosen) - Point3::new(3.0, 3.0, 1.5)).norm() < 1e-6);
+    }
+
+    /// A UAV at rest flies the path leg by leg, straight and stopping at its points, with
+    /// the full clearance; not when moving, starting too close to a wall, or when any leg,
+    /// however far along, passes one.
+    #[test]
+    fn a_path_is_flown_leg_by_leg_from_rest_with_the_full_clearance() {
+        let map = walled_map();
+        let radius = 0.25;
+        let cfg = OptimizerConfig::default().with_limits(2.0, 2.0);
+        let here = Point3::new(2.0, 3.0, 1.5);
+        let rest = [arr(&here), [0.0; 3], [0.0; 3]];
+        // Round the end of the wall at x = 5 (y < 4); the point 0.2 m on is passed over.
+        let corner = Point3::new(5.0, 4.6, 1.5);
+        let goal = Point3::new(8.0, 3.0, 1.5);
+        let path = [arr(&here), [2.2, 3.0, 1.5], arr(&corner), arr(&goal)];
+        let legs = path_legs(&map, radius, &here, true, &path, rest, cfg)
+            .unwrap()
+            .unwrap();
+        assert_eq!(legs.piece_count(), 2);
+        let stop = legs.durations()[0];
+        let at = |t: f64| Point3::from(legs.position(t).unwrap());
+        assert!((at(stop) - corner).norm() < 1e-6, "{}", at(stop));
+        assert!((at(legs.duration()) - goal).norm() < 1e-6);
+        assert!(Vector3::from(legs.velocity(stop).unwrap()).norm() < 1e-9);
+        // Each leg on its straight line, with the clearance all along.
+        let mut s = 0.0;
+        while s <= legs.duration() {
+            let p = at(s);
+            let (a, b) = if s < stop {
+                (here, corner)
+            } else {
+                (corner, goal)
+            };
+            let dir = (b - a).normalize();
+            let off = (p - a) - dir * (p - a).dot(&dir);
+            assert!(off.norm() < 1e-6, "{s}: {}", off.norm());
+            assert!(map.is_clear(&p, radius + SAFETY_MARGIN), "{s}: {p}");
+            s += 0.01;
+        }
+        let none = |from: &Point3<f64>, moving: bool, path: &[[f64; 3]]| {
+            let v = if moving { [0.0, 1.0, 0.0] } else { [0.0; 3] };
+            let head = [arr(from), v, [0.0; 3]];
+            path_legs(&map, radius, from, !moving, path, head, cfg)
+                .unwrap()
+                .is_none()
+        };
+        assert!(!none(&here, false, &path));
+        // Moving: a piece from there is no straight line.
+        assert!(none(&here, true, &path));
+        // The last leg goes through the wall: not even the first is flown.
+        assert!(none(
+            &here,
+            false,
+            &[arr(&here), arr(&corner), [5.0, 2.0, 1.5]]
+        ));
+        // From 0.12 m above the floor's cells.
+        let low = Point3::new(2.0, 3.0, 0.32);
+        assert!(none(&low, false, &[arr(&low), [2.0, 3.0, 1.5]]));
+        // A short path is flown to its end.
+        let short = [arr(&here), [2.3, 3.0, 1.5]];
+        let legs = path_legs(&map, radius, &here, true, &short, rest, cfg)
+            .unwrap()
+            .unwrap();
+        assert!(
+            (Point3::from(legs.position(legs.duration()).unwrap()) - Point3::new(2.3, 3.0, 1.5))
+                .norm()
+                < 1e-6
+        );
     }
 
     #[test]
