@@ -1826,13 +1826,10 @@ fn path_legs(
         if (d < LEG_MIN && *q != goal) || d == 0.0 {
             continue;
         }
-        let tail = [*q, [0.0; 3], [0.0; 3]];
         // The optimiser's errors only mean no legs: the escape moves follow.
-        let Ok(out) = Optimizer::<3, 3>::new(cfg, from, tail, &[]).and_then(|mut o| o.optimize())
-        else {
+        let Some(leg) = move_to_rest(cfg, from, *q) else {
             return Ok(None);
         };
-        let leg = out.trajectory;
         if least_clearance(map, &leg, margin)? < margin {
             return Ok(None);
         }
@@ -1844,9 +1841,19 @@ fn path_legs(
             },
             None => leg,
         });
-        from = tail;
+        from = [*q, [0.0; 3], [0.0; 3]];
     }
     Ok(legs)
+}
+
+/// One polynomial piece from `head` to rest at `to`, within `cfg`'s limits; `None` when the
+/// optimiser fails. From rest it is a straight line.
+fn move_to_rest(cfg: OptimizerConfig, head: [[f64; 3]; 3], to: [f64; 3]) -> Option<Trajectory<3>> {
+    let tail = [to, [0.0; 3], [0.0; 3]];
+    Optimizer::<3, 3>::new(cfg, head, tail, &[])
+        .and_then(|mut o| o.optimize())
+        .ok()
+        .map(|out| out.trajectory)
 }
 
 /// Of `first`, `second` and short moves from `here` (state `head`) to rest at the 26 points
@@ -1878,12 +1885,7 @@ fn safest(
                     continue;
                 }
                 // The optimiser's errors only mean one move fewer to choose from.
-                let tail = [arr(&q), [0.0; 3], [0.0; 3]];
-                if let Ok(out) =
-                    Optimizer::<3, 3>::new(cfg, head, tail, &[]).and_then(|mut o| o.optimize())
-                {
-                    candidates.push(out.trajectory);
-                }
+                candidates.extend(move_to_rest(cfg, head, arr(&q)));
             }
         }
     }
