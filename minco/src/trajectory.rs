@@ -221,7 +221,8 @@ impl<const D: usize> Trajectory<D> {
     /// # Errors
     /// [`MincoError::LengthMismatch`] when the two are of different degrees, and
     /// [`MincoError::Infeasible`] when `next` does not start where this one ends (to 1e-9 of
-    /// the size of the coordinates); velocities and higher derivatives need not join.
+    /// the size of the coordinates), or either point is not finite; velocities and higher
+    /// derivatives need not join.
     pub fn then(&self, next: &Trajectory<D>) -> Result<Self> {
         if next.coeffs_per_piece != self.coeffs_per_piece {
             return Err(MincoError::LengthMismatch {
@@ -239,11 +240,12 @@ impl<const D: usize> Trajectory<D> {
         let end = self.position(self.duration())?;
         let start = next.position(0.0)?;
         let size = end.iter().chain(&start).fold(1.0f64, |m, v| m.max(v.abs()));
-        // Written so that a NaN fails the test.
-        let joins = end
-            .iter()
-            .zip(&start)
-            .all(|(a, b)| (a - b).abs() <= 1e-9 * size);
+        // Written so that a NaN fails the test; an infinite size would pass anything.
+        let joins = size.is_finite()
+            && end
+                .iter()
+                .zip(&start)
+                .all(|(a, b)| (a - b).abs() <= 1e-9 * size);
         if !joins {
             return Err(MincoError::Infeasible(
                 "the next trajectory does not start where this one ends",
@@ -321,6 +323,24 @@ mod tests {
             matches!(d, Err(crate::MincoError::LengthMismatch { .. })),
             "{d:?}"
         );
+    }
+
+    /// Parts with a NaN or infinite end or start do not meet; a part without pieces
+    /// leaves the other as it is.
+    #[test]
+    fn then_rejects_parts_that_are_not_finite_and_keeps_empty_ones_out() {
+        // Degree 1 (two coefficients per piece): p(t) = c0 + c1 t over one second.
+        let line =
+            |c0: [f64; 2], c1: [f64; 2]| super::Trajectory::from_parts(2, vec![1.0], vec![c0, c1]);
+        let a = line([0.0, 0.0], [1.0, 0.0]);
+        for bad in [f64::NAN, f64::INFINITY] {
+            let b = line([1.0, bad], [0.0, 1.0]);
+            assert!(matches!(a.then(&b), Err(crate::MincoError::Infeasible(_))));
+            assert!(matches!(b.then(&a), Err(crate::MincoError::Infeasible(_))));
+        }
+        let empty = super::Trajectory::<2>::from_parts(2, Vec::new(), Vec::new());
+        assert_eq!(a.then(&empty).unwrap().position(1.0).unwrap(), [1.0, 0.0]);
+        assert_eq!(empty.then(&a).unwrap().duration(), 1.0);
     }
 
     /// Sample counts above the cap cost no more than the cap and give its result.
