@@ -129,13 +129,38 @@ impl PlaneMap {
 
 /// A source of nearest map points for the plane fits.
 pub trait Neighbours: Sync {
+    /// What one thread keeps from one query to the next (say, the storage the last query
+    /// looked up), so a run of nearby queries is answered faster; never changes an answer.
+    type Memo<'a>: Default
+    where
+        Self: 'a;
+
     /// The (at most) `k` map points nearest to `q`, as (squared distance, point), into `out`
     /// (cleared first), in any order.
-    fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>);
+    fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>) {
+        self.nearest_with(q, k, out, &mut Self::Memo::default());
+    }
+
+    /// [`Neighbours::nearest`], reusing `memo` from earlier queries of this map.
+    fn nearest_with<'a>(
+        &'a self,
+        q: &Point3<f64>,
+        k: usize,
+        out: &mut Vec<(f64, Point3<f64>)>,
+        memo: &mut Self::Memo<'a>,
+    );
 }
 
 impl Neighbours for PlaneMap {
-    fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>) {
+    type Memo<'a> = ();
+
+    fn nearest_with(
+        &self,
+        q: &Point3<f64>,
+        k: usize,
+        out: &mut Vec<(f64, Point3<f64>)>,
+        (): &mut (),
+    ) {
         out.clear();
         let (Some(tree), Some(k)) = (
             self.tree.as_ref(),
@@ -281,21 +306,30 @@ impl VoxelCloud {
     /// that may be added reach the serial insertion, so the same points are added, in the
     /// same order, as by `extend`.
     pub fn extend_transformed(&mut self, pose: &Isometry3<f64>, points: &[Point3<f64>]) -> usize {
+        let this = &*self;
         let fresh: Vec<Point3<f64>> = points
-            .par_iter()
-            .with_min_len(EXTEND_CHUNK)
-            .map(|p| pose * p)
-            .filter(|p| p.iter().all(|c| c.is_finite()) && !self.holds_voxel_of(p))
+            .par_chunks(EXTEND_CHUNK)
+            .flat_map_iter(|chunk| {
+                // Consecutive points mostly share a block: look each block up once a run.
+                let mut last: Option<([i64; 3], u64)> = None;
+                chunk.iter().map(|p| pose * p).filter(move |p| {
+                    if !p.iter().all(|c| c.is_finite()) {
+                        return false;
+                    }
+                    let (b, slot) = block_slot(this.key(p));
+                    let used = match last {
+                        Some((key, used)) if key == b => used,
+                        _ => {
+                            let used = this.blocks.get(&b).map_or(0, |block| block.used);
+                            last = Some((b, used));
+                            used
+                        }
+                    };
+                    used & (1 << slot) == 0
+                })
+            })
             .collect();
         self.extend(fresh)
-    }
-
-    /// Whether the voxel of `p` holds a point.
-    fn holds_voxel_of(&self, p: &Point3<f64>) -> bool {
-        let (b, slot) = block_slot(self.key(p));
-        self.blocks
-            .get(&b)
-            .is_some_and(|block| block.used & (1 << slot) != 0)
     }
 
     /// How block `key`'s box (voxels of edge `size`) lies against the sphere of squared
@@ -444,8 +478,26 @@ impl VoxelCloud {
     }
 }
 
+/// The blocks a [`VoxelCloud`] query looked up last: the next query of the same blocks
+/// (most of them, for the points of a scan in order) skips the hash lookups.
+#[derive(Debug, Default)]
+pub struct NearBlocks<'a> {
+    last: Option<Looked<'a>>,
+}
+
+/// The lowest block and the extent (0 or 1 along each axis) looked up, with the blocks.
+type Looked<'a> = ([i64; 3], [i64; 3], [Option<&'a VoxelBlock>; 8]);
+
 impl Neighbours for VoxelCloud {
-    fn nearest(&self, q: &Point3<f64>, k: usize, out: &mut Vec<(f64, Point3<f64>)>) {
+    type Memo<'a> = NearBlocks<'a>;
+
+    fn nearest_with<'a>(
+        &'a self,
+        q: &Point3<f64>,
+        k: usize,
+        out: &mut Vec<(f64, Point3<f64>)>,
+        memo: &mut NearBlocks<'a>,
+    ) {
         out.clear();
         if k == 0 {
             return;
@@ -459,18 +511,25 @@ impl Neighbours for VoxelCloud {
             ((c[1] + 1) >> 2) - lo[1],
             ((c[2] + 1) >> 2) - lo[2],
         ];
-        let mut near: [Option<&VoxelBlock>; 8] = [None; 8];
-        for bz in 0..=span[2] {
-            for by in 0..=span[1] {
-                for bx in 0..=span[0] {
-                    let key = [lo[0] + bx, lo[1] + by, lo[2] + bz];
-                    // Each offset is 0 or 1, so the index is in 0..8.
-                    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-                    let at = (bx | (by << 1) | (bz << 2)) as usize;
-                    near[at] = self.blocks.get(&key).map(|x| &**x);
+        let near = match memo.last {
+            Some((l, s, near)) if l == lo && s == span => near,
+            _ => {
+                let mut near: [Option<&VoxelBlock>; 8] = [None; 8];
+                for bz in 0..=span[2] {
+                    for by in 0..=span[1] {
+                        for bx in 0..=span[0] {
+                            let key = [lo[0] + bx, lo[1] + by, lo[2] + bz];
+                            // Each offset is 0 or 1, so the index is in 0..8.
+                            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                            let at = (bx | (by << 1) | (bz << 2)) as usize;
+                            near[at] = self.blocks.get(&key).map(|x| &**x);
+                        }
+                    }
                 }
+                memo.last = Some((lo, span, near));
+                near
             }
-        }
+        };
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
@@ -498,13 +557,13 @@ impl Neighbours for VoxelCloud {
 
 /// The plane (unit normal n, a point on it) fitted to the neighbours of `q`, if they are
 /// close enough and planar enough.
-fn fit_plane(
-    map: &impl Neighbours,
+fn fit_plane<'a, M: Neighbours>(
+    map: &'a M,
     q: &Point3<f64>,
     cfg: &RegistrationConfig,
-    nn: &mut Vec<(f64, Point3<f64>)>,
+    (nn, memo): &mut (Vec<(f64, Point3<f64>)>, M::Memo<'a>),
 ) -> Option<(Vector3<f64>, Point3<f64>)> {
-    map.nearest(q, cfg.neighbours, nn);
+    map.nearest_with(q, cfg.neighbours, nn, memo);
     if nn.len() < 3 || nn.iter().any(|r| r.0 > cfg.max_neighbour_distance.powi(2)) {
         return None;
     }
@@ -578,8 +637,8 @@ pub fn register_with_prior(
                 .par_iter_mut()
                 .with_min_len(PLANE_CHUNK)
                 .zip(scan.par_iter())
-                .for_each_init(Vec::new, |nn, (plane, p)| {
-                    *plane = fit_plane(map, &(pose * *p), cfg, nn);
+                .for_each_init(Default::default, |scratch, (plane, p)| {
+                    *plane = fit_plane(map, &(pose * *p), cfg, scratch);
                 });
         }
         let t = pose.translation.vector;
@@ -787,6 +846,29 @@ mod tests {
             // nearest ones within that distance are found exactly.
             let within: Vec<f64> = d.iter().copied().filter(|&x| x <= size * size).take(5).collect();
             proptest::prop_assert_eq!(&g[..within.len()], &within[..]);
+        }
+
+        /// A memo carried over a run of queries (near each other, as a scan's points are,
+        /// and far apart) gives each query the answer a fresh one does, in the same order.
+        #[test]
+        fn memo_never_changes_an_answer(
+            pts in proptest::collection::vec((-2.0f64..2.0, -2.0f64..2.0, -1.0f64..1.0), 1..300),
+            start in (-2.5f64..2.5, -2.5f64..2.5, -1.5f64..1.5),
+            steps in proptest::collection::vec((-0.3f64..0.3, -0.3f64..0.3, -0.3f64..0.3), 1..60),
+            k in 0usize..12,
+        ) {
+            let mut cloud = VoxelCloud::new(0.25);
+            cloud.extend(pts.iter().map(|&(x, y, z)| Point3::new(x, y, z)));
+            let mut memo = NearBlocks::default();
+            let (mut with, mut fresh) = (Vec::new(), Vec::new());
+            let mut q = Point3::new(start.0, start.1, start.2);
+            for (i, (dx, dy, dz)) in steps.into_iter().enumerate() {
+                // Every seventh query jumps across the cloud.
+                q = if i % 7 == 6 { Point3::new(-q.x, -q.y, -q.z) } else { q + Vector3::new(dx, dy, dz) };
+                cloud.nearest_with(&q, k, &mut with, &mut memo);
+                cloud.nearest(&q, k, &mut fresh);
+                proptest::prop_assert_eq!(&with, &fresh);
+            }
         }
     }
 
