@@ -134,6 +134,11 @@ const HOLD_RADIUS: f64 = 3.0;
 /// Trajectories keep this much more than the UAV's radius from known obstacles \[m\].
 const SAFETY_MARGIN: f64 = 0.05;
 
+/// What trajectory checks allow below the margin the path searches keep \[m\]: a search's
+/// step between the centres of two cells that keep the margin can pass nearer an occupied
+/// cell's corner (0.283 m for 0.3 m with 0.2 m cells).
+const STEP_SLACK: f64 = 0.02;
+
 /// Around the UAV, grid paths may keep as little clearance as the UAV has \[m\].
 const ESCAPE_RADIUS: f64 = 1.0;
 
@@ -1760,7 +1765,7 @@ impl Explorer<'_> {
     }
 
     /// Whether the rest of the trajectory passes closer to a known obstacle than the UAV's
-    /// radius and [`SAFETY_MARGIN`] (see [`Explorer::too_close`]).
+    /// radius and [`SAFETY_MARGIN`], less [`STEP_SLACK`] (see [`Explorer::too_close`]).
     fn blocked(&self, t: f64) -> Result<bool, ExploreError> {
         match &self.reference.traj {
             Some(traj) => self.too_close(traj, t - self.reference.t0),
@@ -1769,12 +1774,13 @@ impl Explorer<'_> {
     }
 
     /// Whether `traj` from time `s` on passes closer to a known obstacle than the UAV's radius
-    /// and [`SAFETY_MARGIN`]. Trajectories are kept while their target stays, so obstacles
+    /// and [`SAFETY_MARGIN`], less [`STEP_SLACK`] (what a search's diagonal step between
+    /// two cells that keep the margin may lose). Trajectories are kept while their target stays, so obstacles
     /// seen later must be caught with a margin. Within [`ESCAPE_RADIUS`]
     /// of the start the clearance the start has is enough, so a UAV near a wall can keep a
     /// path that leaves it.
     fn too_close(&self, traj: &Trajectory<3>, s: f64) -> Result<bool, ExploreError> {
-        let margin = self.config.flight.radius + SAFETY_MARGIN;
+        let margin = self.config.flight.radius + SAFETY_MARGIN - STEP_SLACK;
         let mut s = s.max(0.0);
         let start = Point3::from(traj.position(s.min(traj.duration()))?);
         let near = self.map.clearance(&start, margin);
@@ -1798,11 +1804,12 @@ impl Explorer<'_> {
 /// trajectories through the path's points all cut a corner too close to a wall: a single
 /// piece between rest states is a straight line, and the path's search checked its legs at
 /// the clearance. Points nearer than [`LEG_MIN`] to a leg's start (grid paths step by a
-/// cell) are passed over, except the path's end. `None` unless the UAV is at rest and
-/// every leg, all the way to the path's end, keeps the UAV's `radius` and
-/// [`SAFETY_MARGIN`] from known obstacles from its start on: no allowance near a start
-/// close to a wall, as [`Explorer::too_close`] gives, so such moves cannot creep along one,
-/// and no move to a point partway along, from which the next plan might fly back.
+/// cell) are passed over, except the path's end, unless the leg past one would cut a
+/// corner: then the UAV stops at it first. `None` unless the UAV is at rest and every leg,
+/// all the way to the path's end, keeps the UAV's `radius` and [`SAFETY_MARGIN`], less
+/// [`STEP_SLACK`], from known obstacles from its start on: no allowance near a start close
+/// to a wall, as [`Explorer::too_close`] gives, so such moves cannot creep along one, and
+/// no move to a point partway along, from which the next plan might fly back.
 fn path_legs(
     map: &VoxelMap,
     radius: f64,
@@ -1812,7 +1819,7 @@ fn path_legs(
     head: [[f64; 3]; 3],
     cfg: OptimizerConfig,
 ) -> Result<Option<Trajectory<3>>, ExploreError> {
-    let margin = radius + SAFETY_MARGIN;
+    let margin = radius + SAFETY_MARGIN - STEP_SLACK;
     let Some(&goal) = positions.last() else {
         return Ok(None);
     };
@@ -1821,18 +1828,51 @@ fn path_legs(
     }
     let mut from = head;
     let mut legs: Option<Trajectory<3>> = None;
+    // The last point passed over since the last leg's end.
+    let mut skipped: Option<[f64; 3]> = None;
     for q in &positions[1..] {
         let d = (Point3::from(*q) - Point3::from(from[0])).norm();
         if (d < LEG_MIN && *q != goal) || d == 0.0 {
+            if d > 0.0 {
+                skipped = Some(*q);
+            }
             continue;
         }
         // The optimiser's errors only mean no legs: the escape moves follow.
-        let Some(leg) = move_to_rest(cfg, from, *q) else {
+        let mut leg = move_to_rest(cfg, from, *q);
+        let cut = match &leg {
+            Some(l) => least_clearance(map, l, margin)? < margin,
+            None => true,
+        };
+        if cut {
+            // A leg past a point passed over leaves the path: stop at the point first.
+            let Some(k) = skipped else {
+                return Ok(None);
+            };
+            let Some(to_k) = move_to_rest(cfg, from, k) else {
+                return Ok(None);
+            };
+            if least_clearance(map, &to_k, margin)? < margin {
+                return Ok(None);
+            }
+            legs = Some(match legs {
+                Some(before) => match before.then(&to_k) {
+                    Ok(joined) => joined,
+                    Err(_) => return Ok(None),
+                },
+                None => to_k,
+            });
+            from = [k, [0.0; 3], [0.0; 3]];
+            leg = move_to_rest(cfg, from, *q);
+            match &leg {
+                Some(l) if least_clearance(map, l, margin)? >= margin => {}
+                _ => return Ok(None),
+            }
+        }
+        skipped = None;
+        let Some(leg) = leg else {
             return Ok(None);
         };
-        if least_clearance(map, &leg, margin)? < margin {
-            return Ok(None);
-        }
         legs = Some(match legs {
             // Legs meet to the optimiser's rounding, far inside `then`'s tolerance.
             Some(before) => match before.then(&leg) {
@@ -3109,6 +3149,45 @@ mod tests {
             (Point3::from(legs.position(legs.duration()).unwrap()) - Point3::new(2.3, 3.0, 1.5))
                 .norm()
                 < 1e-6
+        );
+    }
+
+    /// A point passed over (nearer than `LEG_MIN`) is stopped at when the leg past it would
+    /// cut a corner the path itself goes round.
+    #[test]
+    fn a_leg_that_would_cut_a_corner_stops_at_the_point_passed_over() {
+        let map = walled_map();
+        let radius = 0.25;
+        let margin = radius + SAFETY_MARGIN - STEP_SLACK;
+        let cfg = OptimizerConfig::default().with_limits(2.0, 2.0);
+        // Below the end of the wall at x = 5 (y < 4), then up 0.4 m, then along past it.
+        let here = Point3::new(4.3, 4.2, 1.5);
+        let up = Point3::new(4.3, 4.6, 1.5);
+        let goal = Point3::new(8.0, 4.6, 1.5);
+        assert!((up - here).norm() < LEG_MIN);
+        let rest = |p: &Point3<f64>| [arr(p), [0.0; 3], [0.0; 3]];
+        let leg = |a: &Point3<f64>, b: &Point3<f64>| {
+            let l = move_to_rest(cfg, rest(a), arr(b)).unwrap();
+            least_clearance(&map, &l, margin).unwrap()
+        };
+        // The straight leg cuts the wall's end; the path's own two keep the margin.
+        assert!(leg(&here, &goal) < margin, "{}", leg(&here, &goal));
+        assert!(leg(&here, &up) >= margin && leg(&up, &goal) >= margin);
+        let path = [arr(&here), arr(&up), arr(&goal)];
+        let legs = path_legs(&map, radius, &here, true, &path, rest(&here), cfg)
+            .unwrap()
+            .unwrap();
+        assert_eq!(legs.piece_count(), 2);
+        let at = |t: f64| Point3::from(legs.position(t).unwrap());
+        assert!((at(legs.durations()[0]) - up).norm() < 1e-6);
+        assert!((at(legs.duration()) - goal).norm() < 1e-6);
+        assert!(least_clearance(&map, &legs, margin).unwrap() >= margin);
+        // With no point to stop at, no legs.
+        let straight = [arr(&here), arr(&goal)];
+        assert!(
+            path_legs(&map, radius, &here, true, &straight, rest(&here), cfg)
+                .unwrap()
+                .is_none()
         );
     }
 
