@@ -1826,6 +1826,14 @@ fn path_legs(
     if !at_rest || positions.len() < 2 || !map.is_clear(here, margin) {
         return Ok(None);
     }
+    // A move to rest at `to` that keeps the margin. The optimiser's errors only mean no
+    // legs: the escape moves follow.
+    let clear_move = |from: [[f64; 3]; 3], to: [f64; 3]| -> Result<_, ExploreError> {
+        Ok(match move_to_rest(cfg, from, to) {
+            Some(leg) if least_clearance(map, &leg, margin)? >= margin => Some(leg),
+            _ => None,
+        })
+    };
     let mut from = head;
     let mut legs: Option<Trajectory<3>> = None;
     // The last point passed over since the last leg's end.
@@ -1838,52 +1846,44 @@ fn path_legs(
             }
             continue;
         }
-        // The optimiser's errors only mean no legs: the escape moves follow.
-        let mut leg = move_to_rest(cfg, from, *q);
-        let cut = match &leg {
-            Some(l) => least_clearance(map, l, margin)? < margin,
-            None => true,
+        let leg = match clear_move(from, *q)? {
+            Some(leg) => leg,
+            None => {
+                // A leg past a point passed over leaves the path: stop at the point first.
+                let Some(k) = skipped else {
+                    return Ok(None);
+                };
+                let Some(to_k) = clear_move(from, k)? else {
+                    return Ok(None);
+                };
+                let Some(joined) = join_leg(legs, to_k) else {
+                    return Ok(None);
+                };
+                legs = Some(joined);
+                from = [k, [0.0; 3], [0.0; 3]];
+                let Some(leg) = clear_move(from, *q)? else {
+                    return Ok(None);
+                };
+                leg
+            }
         };
-        if cut {
-            // A leg past a point passed over leaves the path: stop at the point first.
-            let Some(k) = skipped else {
-                return Ok(None);
-            };
-            let Some(to_k) = move_to_rest(cfg, from, k) else {
-                return Ok(None);
-            };
-            if least_clearance(map, &to_k, margin)? < margin {
-                return Ok(None);
-            }
-            legs = Some(match legs {
-                Some(before) => match before.then(&to_k) {
-                    Ok(joined) => joined,
-                    Err(_) => return Ok(None),
-                },
-                None => to_k,
-            });
-            from = [k, [0.0; 3], [0.0; 3]];
-            leg = move_to_rest(cfg, from, *q);
-            match &leg {
-                Some(l) if least_clearance(map, l, margin)? >= margin => {}
-                _ => return Ok(None),
-            }
-        }
         skipped = None;
-        let Some(leg) = leg else {
+        let Some(joined) = join_leg(legs, leg) else {
             return Ok(None);
         };
-        legs = Some(match legs {
-            // Legs meet to the optimiser's rounding, far inside `then`'s tolerance.
-            Some(before) => match before.then(&leg) {
-                Ok(joined) => joined,
-                Err(_) => return Ok(None),
-            },
-            None => leg,
-        });
+        legs = Some(joined);
         from = [*q, [0.0; 3], [0.0; 3]];
     }
     Ok(legs)
+}
+
+/// `legs` with `leg` flown after them; `None` when they do not meet.
+fn join_leg(legs: Option<Trajectory<3>>, leg: Trajectory<3>) -> Option<Trajectory<3>> {
+    match legs {
+        // Legs meet to the optimiser's rounding, far inside `then`'s tolerance.
+        Some(before) => before.then(&leg).ok(),
+        None => Some(leg),
+    }
 }
 
 /// One polynomial piece from `head` to rest at `to`, within `cfg`'s limits; `None` when the
