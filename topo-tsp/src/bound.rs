@@ -28,7 +28,8 @@ use crate::matrix::CostMatrix;
 #[non_exhaustive]
 pub struct BoundConfig {
     /// Maximum 1-trees computed (subgradient iterations). Default 0: automatic, 100 + 5n for
-    /// n cities.
+    /// n cities. This bounds the ascent's work: with it and the period both huge the ascent
+    /// runs about that long ([`crate::solve`] polls its `should_stop` between 1-trees).
     pub max_iterations: usize,
     /// Iterations of the first period; 0 chooses n/2 + 20 for n cities (LKH uses half the
     /// 2n nodes, at least 100; exploration-sized instances converge with fewer). Default 0.
@@ -225,6 +226,16 @@ pub(crate) fn one_tree(d: &Dense, pi: &[f64]) -> OneTree {
 /// assert!(lb.lower_bound <= opt + 1e-9);
 /// ```
 pub fn held_karp_bound(m: &CostMatrix, cfg: &BoundConfig) -> Result<HeldKarpBound> {
+    held_karp_bound_until(m, cfg, &mut || false)
+}
+
+/// [`held_karp_bound`], ended early (with the best bound so far) when `should_stop` returns
+/// true; it is polled before every 1-tree after the first.
+pub(crate) fn held_karp_bound_until(
+    m: &CostMatrix,
+    cfg: &BoundConfig,
+    should_stop: &mut dyn FnMut() -> bool,
+) -> Result<HeldKarpBound> {
     if !(cfg.initial_step > 0.0 && cfg.initial_step.is_finite()) {
         return Err(TspError::InvalidConfig {
             what: "bound settings",
@@ -241,11 +252,11 @@ pub fn held_karp_bound(m: &CostMatrix, cfg: &BoundConfig) -> Result<HeldKarpBoun
             tree_is_tour: true,
         });
     }
-    Ok(ascent(&Dense::new(m), cfg))
+    Ok(ascent(&Dense::new(m), cfg, should_stop))
 }
 
 /// Subgradient ascent with Helsgaun's step schedule (LKH's `Ascent`).
-fn ascent(d: &Dense, cfg: &BoundConfig) -> HeldKarpBound {
+fn ascent(d: &Dense, cfg: &BoundConfig, should_stop: &mut dyn FnMut() -> bool) -> HeldKarpBound {
     let n = d.n;
     let mut pi = vec![0.0; 2 * n];
     let mut tree = one_tree(d, &pi);
@@ -280,7 +291,7 @@ fn ascent(d: &Dense, cfg: &BoundConfig) -> HeldKarpBound {
     'outer: while period > 0 {
         let mut p = 1;
         while p <= period {
-            if its >= max_iterations {
+            if its >= max_iterations || should_stop() {
                 break 'outer;
             }
             for ((x, &deg), l) in pi.iter_mut().zip(&tree.degree).zip(last.iter_mut()) {

@@ -22,7 +22,7 @@
 //! Everything is seeded: the same instance, settings and seed give the same tour.
 
 use crate::assignment::{assignment, patch};
-use crate::bound::{BoundConfig, alpha_candidates, held_karp_bound};
+use crate::bound::{BoundConfig, alpha_candidates, held_karp_bound_until};
 use crate::error::{Result, TspError};
 use crate::exact::Tour;
 use crate::matrix::CostMatrix;
@@ -709,9 +709,11 @@ fn proven_optimal(m: &CostMatrix, lower_bound: f64) -> impl Fn(f64) -> bool {
     move |len: f64| len <= target + 1e-9 * len.abs().max(1.0)
 }
 
-/// Solves the closed ATSP on `m` heuristically; `should_stop` is polled between trials and
-/// every n improving moves of a local search (pass `|| false` for a pure trial budget, or a
-/// deadline check for a time budget — the library reads no clock itself).
+/// Solves the closed ATSP on `m` heuristically; `should_stop` is polled between the lower
+/// bound's 1-trees, between trials and every n improving moves of a local search (pass
+/// `|| false` for a pure trial budget, or a deadline check for a time budget — the library
+/// reads no clock itself). Stopped early, it still returns the best tour found, at least the
+/// first trial's.
 ///
 /// Every local search terminates, even when rounding makes moves look improving that are not
 /// (huge or nearly equal costs): it ends when n moves in a row do not shorten the recomputed
@@ -740,7 +742,7 @@ pub fn solve(
         });
     }
     let n = m.len();
-    let bound = held_karp_bound(m, &cfg.bound)?;
+    let bound = held_karp_bound_until(m, &cfg.bound, &mut should_stop)?;
     if n <= 3 {
         // Every order of ≤ 3 cities from city 0 is checked directly.
         let t = crate::exact::brute_force(m)?;
@@ -1138,5 +1140,24 @@ mod tests {
             ..SolverConfig::default()
         };
         assert!(solve(&m, &bad, || false).is_err());
+    }
+
+    /// A bound with no iteration limit and an endless first period would not end by
+    /// itself: `should_stop` ends it, and the tour comes back all the same.
+    #[test]
+    fn an_endless_bound_is_stoppable() {
+        let m = matrix(5, 3);
+        let mut cfg = SolverConfig::default();
+        cfg.bound.max_iterations = usize::MAX;
+        cfg.bound.initial_period = usize::MAX;
+        let mut polls = 0;
+        let s = solve(&m, &cfg, || {
+            polls += 1;
+            polls > 1000
+        })
+        .unwrap();
+        assert!(is_permutation_from_zero(&s.tour.order, 5));
+        assert!(s.lower_bound <= s.tour.length + 1e-9);
+        assert!(polls > 1000);
     }
 }
