@@ -125,15 +125,19 @@ impl<const S: usize, const D: usize> Minco<S, D> {
     const N: usize = 2 * S;
     /// Free derivatives per junction.
     const F: usize = S - 1;
-    /// Largest number of pieces: keeps every size computation far from overflow.
-    const MAX_PIECES: usize = 1 << 24;
+    /// Largest number of pieces, 2^16: a problem holds about 700 bytes per piece for S = 4
+    /// and D = 3 (1.4 kB for D = 8), all allocated by [`Minco::new`], so a count from bad
+    /// input cannot ask for gigabytes; trajectories of robots have tens of pieces.
+    pub const MAX_PIECES: usize = 1 << 16;
     const TAB: &'static Tables = &TABLES[S];
 
     /// A problem with `pieces` pieces.
     ///
     /// # Errors
-    /// [`MincoError::UnsupportedOrder`] unless S ∈ {2, 3, 4}, [`MincoError::ZeroDimension`] for
-    /// D = 0, [`MincoError::NoPieces`] for zero pieces.
+    /// [`MincoError::UnsupportedOrder`] unless S ∈ {2, 3, 4} (code that calls the solver's
+    /// methods on an order above 4 does not compile), [`MincoError::ZeroDimension`] for
+    /// D = 0, [`MincoError::NoPieces`] for zero pieces, [`MincoError::InvalidConfig`] for more
+    /// than [`Minco::MAX_PIECES`].
     pub fn new(pieces: usize) -> Result<Self> {
         if !(2..=4).contains(&S) {
             return Err(MincoError::UnsupportedOrder(S));
@@ -147,7 +151,7 @@ impl<const S: usize, const D: usize> Minco<S, D> {
         if pieces > Self::MAX_PIECES {
             return Err(MincoError::InvalidConfig {
                 what: "pieces",
-                reason: "at most 2^24 pieces",
+                reason: "at most MAX_PIECES (2^16) pieces",
             });
         }
         let junctions = pieces - 1;
@@ -1081,6 +1085,11 @@ mod tests {
     #[test]
     fn bad_input_is_a_typed_error() {
         assert!(matches!(Minco::<3, 3>::new(0), Err(MincoError::NoPieces)));
+        assert!(Minco::<4, 8>::new(Minco::<4, 8>::MAX_PIECES).is_ok());
+        assert!(matches!(
+            Minco::<4, 8>::new(Minco::<4, 8>::MAX_PIECES + 1),
+            Err(MincoError::InvalidConfig { what: "pieces", .. })
+        ));
         assert!(matches!(
             Minco::<5, 3>::new(2),
             Err(MincoError::UnsupportedOrder(5))
