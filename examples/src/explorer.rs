@@ -2506,6 +2506,28 @@ mod tests {
         let a0 = traj.acceleration(0.0).unwrap();
         assert!((Vector3::from(a0) - fast[2]).norm() < 1e-9, "{a0:?}");
     }
+
+    /// The explorer's first trajectory for a UAV in `state` and a path through `inner` to
+    /// rest at `goal` (2 m/s and 2 m/s², the 0.1 m corridor), with its head, settings and
+    /// acceleration limit.
+    fn planned_from(
+        state: &[Vector3<f64>; 3],
+        inner: &[[f64; 3]],
+        goal: [f64; 3],
+    ) -> (Trajectory<3>, [[f64; 3]; 3], OptimizerConfig, f64) {
+        let (head, v_max, a_max) = trajectory_head(state, 2.0, 2.0, false).unwrap();
+        let mut cfg = OptimizerConfig::default().with_limits(v_max, a_max);
+        cfg.corridor_radius = Some(0.1);
+        cfg.waypoint_weight = 1e4;
+        let tail = [goal, [0.0; 3], [0.0; 3]];
+        let traj = Optimizer::<3, 3>::new(cfg, head, tail, inner)
+            .unwrap()
+            .optimize()
+            .unwrap()
+            .trajectory;
+        (traj, head, cfg, a_max)
+    }
+
     /// The plan of the sinkhole's `fixed:100` seed 9 at 302.0 s (its state and path to the
     /// digit): moving at 1 m/s, the UAV's path turned back to a point 0.25 m behind it, the
     /// UAV's own position first. Held to that path, the optimiser pulls 18 m/s²;
@@ -2526,28 +2548,16 @@ mod tests {
                 -0.07927089482665184,
             ),
         ];
-        let (head, v_max, a_max) = trajectory_head(&state, 2.0, 2.0, false).unwrap();
-        let mut cfg = OptimizerConfig::default().with_limits(v_max, a_max);
-        cfg.corridor_radius = Some(0.1);
-        cfg.waypoint_weight = 1e4;
         let inner = [
-            head[0],
+            [18.347162250692374, 34.73884320516566, 8.115041844140608],
             [18.3, 34.5, 8.1],
             [17.700000000000003, 32.900000000000006, 8.1],
             [22.20974252416577, 27.562365473033964, 8.68286254287518],
             [51.300000000000004, 21.300000000000004, 1.1],
             [52.300000000000004, 21.300000000000004, 1.1],
         ];
-        let tail = [
-            [52.493750000000006, 21.2042362605664, 1.111771432346219],
-            [0.0; 3],
-            [0.0; 3],
-        ];
-        let turn = Optimizer::<3, 3>::new(cfg, head, tail, &inner)
-            .unwrap()
-            .optimize()
-            .unwrap()
-            .trajectory;
+        let goal = [52.493750000000006, 21.2042362605664, 1.111771432346219];
+        let (turn, head, cfg, a_max) = planned_from(&state, &inner, goal);
         assert!(too_steep(&turn, a_max), "{}", turn.max_acceleration(64));
         let stop = brake(cfg, head, a_max).unwrap();
         assert!(!too_steep(&stop, a_max), "{}", stop.max_acceleration(64));
@@ -2586,21 +2596,9 @@ mod tests {
                 0.013089484604161261,
             ),
         ];
-        let (head, v_max, a_max) = trajectory_head(&state, 2.0, 2.0, false).unwrap();
-        let mut cfg = OptimizerConfig::default().with_limits(v_max, a_max);
-        cfg.corridor_radius = Some(0.1);
-        cfg.waypoint_weight = 1e4;
         let inner = [[34.77176882206745, 11.565792634436875, 1.111771432346219]];
-        let tail = [
-            [34.10719098880726, 11.516620057604724, 1.111771432346219],
-            [0.0; 3],
-            [0.0; 3],
-        ];
-        let turn = Optimizer::<3, 3>::new(cfg, head, tail, &inner)
-            .unwrap()
-            .optimize()
-            .unwrap()
-            .trajectory;
+        let goal = [34.10719098880726, 11.516620057604724, 1.111771432346219];
+        let (turn, head, cfg, a_max) = planned_from(&state, &inner, goal);
         assert!(turn.max_acceleration(64) < ACCEL_SLACK * a_max);
         assert!(
             too_steep(&turn, a_max),
