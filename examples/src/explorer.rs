@@ -1699,6 +1699,19 @@ impl Explorer<'_> {
         cfg.corridor_radius = Some(self.config.corridor);
         cfg.waypoint_weight = 1e4;
         let at_rest = v.norm() < 0.05 && a.norm() < 0.05;
+        // The path flown leg by leg, straight moves from rest to rest (`None` unless at rest
+        // and every leg keeps its clearance).
+        let leg_by_leg = || {
+            path_legs(
+                &self.map,
+                self.config.flight.radius,
+                &here,
+                at_rest,
+                &positions,
+                head,
+                cfg,
+            )
+        };
         let mut escape = false;
         let mut traj = if at_rest && (Point3::from(goal) - here).norm() < EXHAUSTED_RADIUS {
             // Already there: after a second of looking, a frontier that stays is out of view
@@ -1727,15 +1740,7 @@ impl Explorer<'_> {
                     .trajectory;
                 if !self.too_close(&second, 0.0)? {
                     Some(second)
-                } else if let Some(legs) = path_legs(
-                    &self.map,
-                    self.config.flight.radius,
-                    &here,
-                    at_rest,
-                    &positions,
-                    head,
-                    cfg,
-                )? {
+                } else if let Some(legs) = leg_by_leg()? {
                     // From rest, the path flown leg by leg keeps the clearance that both
                     // trajectories lose where they cut its corners.
                     Some(legs)
@@ -1770,15 +1775,7 @@ impl Explorer<'_> {
                 return Ok(false);
             }
             let instead = if at_rest {
-                path_legs(
-                    &self.map,
-                    self.config.flight.radius,
-                    &here,
-                    at_rest,
-                    &positions,
-                    head,
-                    cfg,
-                )?
+                leg_by_leg()?
             } else {
                 brake(cfg, head, a_max)
             };
