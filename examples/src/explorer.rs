@@ -31,8 +31,7 @@ use frontier::{
 };
 use fu_mpc_core::icr::{IcrScan, IcrScanConfig};
 use fu_mpc_core::{
-    CoreError, FisherConfig, FisherTable, FixedSpeed, FrontierTarget, FuMpc, MpcConfig,
-    ScanController, ScanInput,
+    CoreError, FisherConfig, FisherTable, FixedSpeed, FuMpc, MpcConfig, ScanController, ScanInput,
 };
 use lidar_kinematics::{
     AngleSample, Encoder, Extrinsics, KinematicChain, KinematicsError, LidarSensor, MotorLimits,
@@ -2138,7 +2137,6 @@ pub fn explore(
     let mut angles: Vec<AngleSample> = Vec::with_capacity(101);
     let mut body_samples: Vec<Isometry3<f64>> = Vec::with_capacity(101);
     let mut reference_poses: Vec<Isometry3<f64>> = Vec::with_capacity(config.mpc.horizon + 1);
-    let mut scan_targets: Vec<FrontierTarget> = Vec::new();
     let mut fisher: Option<FisherTable> = None;
     let latency = fc.encoder.latency();
     angles.push(AngleSample::new(0.0, encoder.read(latency)?.angle));
@@ -2349,23 +2347,11 @@ pub fn explore(
                 flat_attitude(&a, ex.reference.yaw(t)),
             ));
         }
-        scan_targets.clear();
-        scan_targets.extend(
-            ex.mission
-                .ids()
-                .iter()
-                .filter_map(|id| ex.frontiers.cluster(*id))
-                .map(|c| FrontierTarget {
-                    center: c.center(),
-                    #[allow(clippy::cast_precision_loss)]
-                    score: c.cells().len() as f64,
-                }),
-        );
         let measured = measured_motor(&angles, latency);
         let input = ScanInput {
             motor: measured.unwrap_or(motor_state),
             reference: &reference_poses,
-            targets: &scan_targets,
+            targets: ex.mission.targets(),
             fisher: fisher.as_ref(),
         };
         let band = match &scan {

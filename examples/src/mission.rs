@@ -1,6 +1,7 @@
 //! Which frontier clusters the explorer still asks for, kept up to date frame by frame.
 
 use frontier::{Cluster, ClusterId, FrameUpdate, FrontierDelta, Frontiers, VoxelMap};
+use fu_mpc_core::FrontierTarget;
 use nalgebra::Point3;
 use rustc_hash::{FxHashMap, FxHashSet};
 
@@ -142,6 +143,9 @@ pub(crate) struct MissionCache {
     hits: HitCells,
     verdicts: FxHashMap<ClusterId, bool>,
     ids: Vec<ClusterId>,
+    /// The scan controller's targets, one per id of `ids`: taken while the refresh visits
+    /// the clusters, so the scan controller needs no lookup by id.
+    targets: Vec<FrontierTarget>,
 }
 
 impl MissionCache {
@@ -151,12 +155,19 @@ impl MissionCache {
             hits: HitCells::new(map),
             verdicts: FxHashMap::default(),
             ids: Vec::new(),
+            targets: Vec::new(),
         }
     }
 
     /// The mission clusters' ids as of the last [`MissionCache::refresh`], in id order.
     pub(crate) fn ids(&self) -> &[ClusterId] {
         &self.ids
+    }
+
+    /// The mission clusters as the scan controller's targets, in the order of
+    /// [`MissionCache::ids`]: each cluster's centre, scored by its cell count.
+    pub(crate) fn targets(&self) -> &[FrontierTarget] {
+        &self.targets
     }
 
     /// Takes in one frame: the map's and the frontier's changes and the cells its returns
@@ -195,6 +206,7 @@ impl MissionCache {
             }
         }
         self.ids.clear();
+        self.targets.clear();
         for c in frontiers.clusters() {
             let keep = *self
                 .verdicts
@@ -202,6 +214,12 @@ impl MissionCache {
                 .or_insert_with(|| keeps(c, map, &self.hits, region));
             if keep {
                 self.ids.push(c.id());
+                self.targets.push(FrontierTarget {
+                    center: c.center(),
+                    // Cell counts are far below 2^53.
+                    #[allow(clippy::cast_precision_loss)]
+                    score: c.cells().len() as f64,
+                });
             }
         }
     }
@@ -223,6 +241,17 @@ mod tests {
     use super::*;
     use frontier::{Bounds, MapConfig};
     use nalgebra::Vector3;
+
+    /// The scan controller's targets of the clusters `ids`, looked up one by one.
+    fn targets_of(frontiers: &Frontiers, ids: &[ClusterId]) -> Vec<FrontierTarget> {
+        ids.iter()
+            .filter_map(|id| frontiers.cluster(*id))
+            .map(|c| FrontierTarget {
+                center: c.center(),
+                score: c.cells().len() as f64,
+            })
+            .collect()
+    }
 
     /// A sheet of free cells onto open unknown space is a mission cluster until returns are
     /// found to end in most of its cells: then its unknown side lies behind a surface.
@@ -313,6 +342,8 @@ mod tests {
                 .map(Cluster::id)
                 .collect();
             assert_eq!(cache.ids(), &want[..]);
+            // The targets are the same clusters' centres and cell counts, in id order.
+            assert_eq!(cache.targets(), &targets_of(frontiers, &want)[..]);
         };
         // A line of free cells along x, unknown all round: one frontier cluster.
         frame(
@@ -413,6 +444,7 @@ mod tests {
                     .map(Cluster::id)
                     .collect();
                 proptest::prop_assert_eq!(cache.ids(), &want[..]);
+                proptest::prop_assert_eq!(cache.targets(), &targets_of(&frontiers, &want)[..]);
             }
         }
     }
